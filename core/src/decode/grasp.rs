@@ -1,0 +1,190 @@
+//! One view's maps -> 6-DoF grasps (DESIGN.md, method step 6).
+//!
+//! For each quality peak `(u, v)`: the angle `phi = atan2(sin 2phi, cos 2phi) / 2`
+//! is measured in the image from +u towards +v; the closing direction is
+//! `cos(phi) u + sin(phi) v`; the approach is the view's viewing direction.
+//! The fingertips are placed `insertion_m` past the nearest surface found
+//! within `surface_radius_m` of the pixel (the paper's Delta = 5 mm), less if
+//! the pads would otherwise come closer than `table_clearance_m` to the
+//! table; a grasp whose pads cannot clear the table at all is dropped, and so
+//! is one wider than the gripper opens.
+//!
+//! Grasp frame (DESIGN.md): origin midway between the fingertips, +z the
+//! approach, +x the closing direction, +y = z x x.
+
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+
+use super::peaks::{find_peaks, smooth};
+use crate::gripper::Gripper;
+use crate::infer::{Channel, GraspMaps, ModelContract};
+use crate::segment::TablePlane;
+use crate::view::{OrthoView, ViewAxis};
+
+/// Settings of the decoding stage.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DecodeConfig {
+    /// Gaussian smoothing of the quality map before peak search (px); 0 = off.
+    pub smoothing_sigma_px: f32,
+    /// Peaks closer than this to a better one are suppressed (px).
+    pub nms_radius_px: usize,
+    /// At most this many peaks per view.
+    pub peaks_per_view: usize,
+    /// Radius searched for the nearest surface around a peak (m).
+    pub surface_radius_m: f32,
+    /// How far the fingertips go past that surface (m).
+    pub insertion_m: f64,
+    /// Smallest distance kept between a pad and the table (m).
+    pub table_clearance_m: f64,
+}
+
+impl Default for DecodeConfig {
+    fn default() -> Self {
+        Self {
+            smoothing_sigma_px: 1.0,
+            nms_radius_px: 4,
+            peaks_per_view: 3,
+            surface_radius_m: 0.005,
+            insertion_m: 0.015,
+            table_clearance_m: 0.003,
+        }
+    }
+}
+
+/// A 6-DoF parallel-jaw grasp in the world.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Grasp {
+    /// Pose of the grasp frame in the world.
+    pub world_from_grasp: Isometry3<f64>,
+    /// Opening between the pads (m).
+    pub width_m: f64,
+    /// Predicted quality in [0, 1].
+    pub quality: f32,
+    /// The object it grasps.
+    pub object_id: u32,
+    /// The view it was found in.
+    pub view: ViewAxis,
+    /// Peak pixel `[u, v]` in that view.
+    pub pixel: [u32; 2],
+    /// Image angle phi (rad), in [-pi/2, pi/2].
+    pub angle_rad: f32,
+}
+
+/// A rendered view and where its object sits in the world.
+#[derive(Debug, Clone, Copy)]
+pub struct ViewPlacement<'a> {
+    /// The view.
+    pub view: &'a OrthoView,
+    /// Object frame of the view's object.
+    pub world_from_object: &'a Isometry3<f64>,
+    /// Id of the object.
+    pub object_id: u32,
+}
+
+/// Grasps of one view from view `index` of `maps`, best first.
+#[allow(clippy::too_many_arguments)]
+pub fn decode_view(
+    placement: &ViewPlacement<'_>,
+    maps: &GraspMaps,
+    index: usize,
+    contract: &ModelContract,
+    gripper: &Gripper,
+    table: &TablePlane,
+    min_quality: f32,
+    config: &DecodeConfig,
+) -> Vec<Grasp> {
+    let view = placement.view;
+    let l = view.size_px;
+    let channel = |c: Channel| maps.channel(index, contract.channel_index(c));
+    let quality = smooth(channel(Channel::Quality), l, config.smoothing_sigma_px);
+    let (cos2, sin2, width) = (
+        channel(Channel::Cos2Phi),
+        channel(Channel::Sin2Phi),
+        channel(Channel::Width),
+    );
+    let world_from_object = placement.world_from_object;
+    let world_from_view = world_from_object.rotation.to_rotation_matrix().matrix() * view.object_from_view;
+    let approach = world_from_view.column(2).into_owned();
+
+    let mut grasps = Vec::new();
+    for (u, v, q) in find_peaks(
+        &quality,
+        l,
+        min_quality,
+        config.nms_radius_px,
+        config.peaks_per_view,
+    ) {
+        let i = v * l + u;
+        let (c, s) = (cos2[i], sin2[i]);
+        let width_m = f64::from(width[i]) * f64::from(contract.width_scale_m);
+        if !(c.is_finite() && s.is_finite() && width_m.is_finite())
+            || width_m <= 0.0
+            || width_m > gripper.max_width_m
+        {
+            continue;
+        }
+        let Some(surface_z) = view.nearest_depth_within(u, v, config.surface_radius_m) else {
+            continue;
+        };
+        let phi = 0.5 * f64::from(s).atan2(f64::from(c));
+        let closing = (world_from_view * Vector3::new(phi.cos(), phi.sin(), 0.0)).normalize();
+        let surface = world_from_object
+            * nalgebra::Point3::from(view.point_in_object(
+                u as f64 + 0.5,
+                v as f64 + 0.5,
+                f64::from(surface_z),
+            ));
+        let Some(insertion) = clear_of_table(
+            &surface.coords,
+            &closing,
+            &approach,
+            width_m,
+            gripper,
+            table,
+            config,
+        ) else {
+            continue;
+        };
+        let origin = surface.coords + insertion * approach;
+        let rotation = Matrix3::from_columns(&[closing, approach.cross(&closing), approach]);
+        let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rotation));
+        // Renormalise: the product of two rotations drifts from unit norm at 1e-16.
+        let rotation = UnitQuaternion::new_normalize(rotation.into_inner());
+        grasps.push(Grasp {
+            world_from_grasp: Isometry3::from_parts(Translation3::from(origin), rotation),
+            width_m,
+            quality: q,
+            object_id: placement.object_id,
+            view: view.axis,
+            pixel: [u as u32, v as u32],
+            angle_rad: phi as f32,
+        });
+    }
+    grasps
+}
+
+/// The insertion (<= `config.insertion_m`) that keeps every pad corner at
+/// least `table_clearance_m` above the table, or `None` if none does.
+fn clear_of_table(
+    surface: &Vector3<f64>,
+    closing: &Vector3<f64>,
+    approach: &Vector3<f64>,
+    width_m: f64,
+    gripper: &Gripper,
+    table: &TablePlane,
+    config: &DecodeConfig,
+) -> Option<f64> {
+    let n = &table.normal;
+    let across = approach.cross(closing);
+    // Lowest pad corner relative to the fingertip midpoint, along n.
+    let lowest = -(0.5 * width_m * n.dot(closing).abs())
+        - 0.5 * gripper.finger_width_m * n.dot(&across).abs()
+        + (-gripper.finger_depth_m * n.dot(approach)).min(0.0);
+    let margin = table.height_of(surface) + lowest - config.table_clearance_m;
+    let descent = -n.dot(approach); // height lost per metre of insertion
+    if descent > 1e-9 {
+        let limit = margin / descent;
+        (limit >= 0.0).then_some(config.insertion_m.min(limit))
+    } else {
+        (margin + config.insertion_m * -descent >= 0.0).then_some(config.insertion_m)
+    }
+}

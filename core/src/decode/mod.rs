@@ -1,0 +1,9 @@
+//! Grasp maps -> 6-DoF grasps in the world, and their ranking.
+
+mod grasp;
+mod peaks;
+mod rank;
+
+pub use grasp::{DecodeConfig, Grasp, ViewPlacement, decode_view};
+pub use peaks::{find_peaks, smooth};
+pub use rank::{RankConfig, rank_grasps};

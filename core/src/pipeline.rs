@@ -1,0 +1,427 @@
+//! The whole method, split where a server batches across requests:
+//! [`Planner::prepare`] (frame -> views to infer), the network, and
+//! [`Planner::finish`] (maps -> ranked grasps). [`Planner::plan`] chains them.
+
+use std::time::{Duration, Instant};
+
+use nalgebra::{Isometry3, Point3, Vector3};
+
+use crate::decode::{DecodeConfig, Grasp, RankConfig, ViewPlacement, decode_view, rank_grasps};
+use crate::error::{Error, Result};
+use crate::geometry::Workspace;
+use crate::gripper::Gripper;
+use crate::infer::{GraspMaps, GraspNet, ModelContract, NORMALISATION_CUBE_V1, ViewBatch};
+use crate::object::{ObjectFrame, object_frame};
+use crate::segment::{ClusterConfig, TableConfig, TablePlane, euclidean_clusters, fit_table, points_above};
+use crate::select::{ViewPolicy, select_views, view_entropy};
+use crate::sensor::{SensorInput, world_points};
+use crate::view::{OrthoView, ViewAxis};
+
+/// One sensor frame and where it was taken from.
+#[derive(Debug, Clone, Copy)]
+pub struct SceneInput<'a> {
+    /// The depth image or cloud.
+    pub sensor: SensorInput<'a>,
+    /// Camera pose in the world (z up).
+    pub world_from_camera: Isometry3<f64>,
+    /// Only points inside this box are considered.
+    pub workspace: Workspace,
+}
+
+/// Per-request choices.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanOptions {
+    /// The gripper to plan for.
+    pub gripper: Gripper,
+    /// At most this many grasps in the answer.
+    pub max_grasps: usize,
+    /// Grasps under this quality are dropped (tau).
+    pub min_quality: f32,
+    /// Which views go through the network.
+    pub view_policy: ViewPolicy,
+    /// Keep the rendered views and their maps in the plan (debugging).
+    pub keep_views: bool,
+}
+
+impl Default for PlanOptions {
+    fn default() -> Self {
+        Self {
+            gripper: Gripper::default(),
+            max_grasps: 10,
+            min_quality: 0.5,
+            view_policy: ViewPolicy::Entropy,
+            keep_views: false,
+        }
+    }
+}
+
+impl PlanOptions {
+    /// Checks the gripper and the limits.
+    pub fn validate(&self) -> Result<()> {
+        self.gripper.validate()?;
+        if !(self.min_quality.is_finite() && (0.0..=1.0).contains(&self.min_quality)) {
+            return Err(Error::invalid(
+                "min_quality",
+                format!("must be in [0, 1], got {}", self.min_quality),
+            ));
+        }
+        if self.max_grasps == 0 {
+            return Err(Error::invalid("max_grasps", "must be at least 1"));
+        }
+        Ok(())
+    }
+}
+
+/// Service-wide settings of the pipeline (not per request).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlannerConfig {
+    /// Table stage.
+    pub table: TableConfig,
+    /// Clustering stage.
+    pub cluster: ClusterConfig,
+    /// Decoding stage.
+    pub decode: DecodeConfig,
+    /// Views rendered per object.
+    pub views: Vec<ViewAxis>,
+    /// At most this many grasps per object.
+    pub max_grasps_per_object: usize,
+}
+
+impl Default for PlannerConfig {
+    fn default() -> Self {
+        Self {
+            table: TableConfig::default(),
+            cluster: ClusterConfig::default(),
+            decode: DecodeConfig::default(),
+            views: ViewAxis::ALL.to_vec(),
+            max_grasps_per_object: 3,
+        }
+    }
+}
+
+/// Wall time of each stage.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageTimings {
+    /// Frame -> world points, cropped.
+    pub sensor: Duration,
+    /// Table plane fit and removal.
+    pub table: Duration,
+    /// Euclidean clustering.
+    pub cluster: Duration,
+    /// Object frames.
+    pub frames: Duration,
+    /// View rendering.
+    pub views: Duration,
+    /// Entropy and view selection.
+    pub select: Duration,
+    /// The network (as measured by whoever ran it).
+    pub inference: Duration,
+    /// Peaks -> grasps, ranking.
+    pub decode: Duration,
+}
+
+impl StageTimings {
+    /// Every stage except the network.
+    pub fn without_inference(&self) -> Duration {
+        self.sensor + self.table + self.cluster + self.frames + self.views + self.select + self.decode
+    }
+}
+
+/// A view's summary for the answer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewReport {
+    /// Which view.
+    pub axis: ViewAxis,
+    /// Its viewpoint entropy (bits).
+    pub entropy: f64,
+    /// Whether it went through the network.
+    pub inferred: bool,
+}
+
+/// An object found in the frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DetectedObject {
+    /// Id, in the fixed cluster order (0-based).
+    pub id: u32,
+    /// Its gravity-aligned frame and extent.
+    pub frame: ObjectFrame,
+    /// Its views.
+    pub views: Vec<ViewReport>,
+}
+
+/// A rendered view with its maps, when [`PlanOptions::keep_views`] is set.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DebugView {
+    /// The object.
+    pub object_id: u32,
+    /// The view.
+    pub view: OrthoView,
+    /// `4 x l x l` maps in the contract's order, if the view was inferred.
+    pub maps: Option<Vec<f32>>,
+}
+
+/// The answer for one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// Ranked grasps, best first.
+    pub grasps: Vec<Grasp>,
+    /// Every object found, by id.
+    pub objects: Vec<DetectedObject>,
+    /// The table the objects stand on.
+    pub table: TablePlane,
+    /// Stage timings.
+    pub timings: StageTimings,
+    /// Views and maps, when asked for.
+    pub debug_views: Vec<DebugView>,
+}
+
+struct PreparedObject {
+    object: DetectedObject,
+    views: Vec<OrthoView>,
+}
+
+/// A frame made ready for the network: its views, and what comes after.
+pub struct Prepared {
+    objects: Vec<PreparedObject>,
+    table: TablePlane,
+    /// `(object index, view index)` of each batch entry.
+    inferred: Vec<(usize, usize)>,
+    batch: ViewBatch,
+    options: PlanOptions,
+    timings: StageTimings,
+}
+
+impl Prepared {
+    /// The views to run through the network, in batch order.
+    pub fn batch(&self) -> &ViewBatch {
+        &self.batch
+    }
+
+    /// Objects found so far.
+    pub fn object_count(&self) -> usize {
+        self.objects.len()
+    }
+
+    /// Records how long the network took (for the timings in the plan).
+    pub fn set_inference_time(&mut self, elapsed: Duration) {
+        self.timings.inference = elapsed;
+    }
+}
+
+/// The pipeline, configured once for a model contract.
+#[derive(Debug, Clone)]
+pub struct Planner {
+    config: PlannerConfig,
+    contract: ModelContract,
+}
+
+impl Planner {
+    /// A planner for networks that speak `contract`.
+    pub fn new(config: PlannerConfig, contract: ModelContract) -> Result<Self> {
+        if contract.normalisation != NORMALISATION_CUBE_V1 {
+            return Err(Error::Contract {
+                key: crate::infer::keys::NORMALISATION.into(),
+                reason: format!("{:?} is not supported", contract.normalisation),
+            });
+        }
+        if config.views.is_empty() {
+            return Err(Error::invalid("views", "at least one view axis is needed"));
+        }
+        Ok(Self { config, contract })
+    }
+
+    /// The contract views are rendered for.
+    pub fn contract(&self) -> &ModelContract {
+        &self.contract
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &PlannerConfig {
+        &self.config
+    }
+
+    /// Frame -> objects -> frames -> views -> entropy -> the batch to infer.
+    pub fn prepare(&self, scene: &SceneInput<'_>, options: &PlanOptions) -> Result<Prepared> {
+        options.validate()?;
+        let mut timings = StageTimings::default();
+        let mut clock = Instant::now();
+        let mut lap = |slot: &mut Duration| {
+            let now = Instant::now();
+            *slot = now - clock;
+            clock = now;
+        };
+
+        let cloud = world_points(&scene.sensor, &scene.world_from_camera, &scene.workspace)?;
+        lap(&mut timings.sensor);
+
+        let table = fit_table(&cloud.points, &self.config.table)?;
+        let above = points_above(&cloud.points, &table, self.config.table.object_min_height_m);
+        lap(&mut timings.table);
+
+        let clusters = euclidean_clusters(&above, &self.config.cluster);
+        lap(&mut timings.cluster);
+
+        let camera = Point3::from(scene.world_from_camera.translation.vector);
+        let framed: Vec<(ObjectFrame, Vec<[f32; 3]>)> = clusters
+            .iter()
+            .map(|c| object_frame(&above, c, &camera))
+            .collect();
+        lap(&mut timings.frames);
+
+        let (l, s) = (self.contract.input_size_px, self.contract.pixel_size_m);
+        let rendered: Vec<Vec<OrthoView>> = framed
+            .iter()
+            .map(|(frame, local)| {
+                let camera_in_object = frame.world_from_object.inverse_transform_point(&camera);
+                let plus_y = camera_in_object.y >= 0.0;
+                self.config
+                    .views
+                    .iter()
+                    .map(|&axis| OrthoView::render(axis, plus_y, local, l, s))
+                    .collect()
+            })
+            .collect();
+        lap(&mut timings.views);
+
+        let mut batch = ViewBatch::new(l);
+        let mut inferred = Vec::new();
+        let mut objects = Vec::with_capacity(rendered.len());
+        for (index, ((frame, _), views)) in framed.into_iter().zip(rendered).enumerate() {
+            let id = index as u32;
+            let entropies: Vec<f64> = views.iter().map(|v| view_entropy(&v.image)).collect();
+            let chosen = select_views(options.view_policy, &self.config.views, &entropies, id);
+            for &v in &chosen {
+                batch.push(&views[v].image);
+                inferred.push((index, v));
+            }
+            let reports = views
+                .iter()
+                .zip(&entropies)
+                .enumerate()
+                .map(|(v, (view, &entropy))| ViewReport {
+                    axis: view.axis,
+                    entropy,
+                    inferred: chosen.contains(&v),
+                })
+                .collect();
+            objects.push(PreparedObject {
+                object: DetectedObject {
+                    id,
+                    frame,
+                    views: reports,
+                },
+                views,
+            });
+        }
+        lap(&mut timings.select);
+
+        Ok(Prepared {
+            objects,
+            table,
+            inferred,
+            batch,
+            options: options.clone(),
+            timings,
+        })
+    }
+
+    /// Maps of the prepared batch -> ranked grasps.
+    pub fn finish(&self, prepared: Prepared, maps: &GraspMaps) -> Result<Plan> {
+        maps.check_matches(&prepared.batch)?;
+        let start = Instant::now();
+        let Prepared {
+            objects,
+            table,
+            inferred,
+            options,
+            mut timings,
+            ..
+        } = prepared;
+        let mut grasps = Vec::new();
+        for (batch_index, &(object, view)) in inferred.iter().enumerate() {
+            let o = &objects[object];
+            let placement = ViewPlacement {
+                view: &o.views[view],
+                world_from_object: &o.object.frame.world_from_object,
+                object_id: o.object.id,
+            };
+            grasps.extend(decode_view(
+                &placement,
+                maps,
+                batch_index,
+                &self.contract,
+                &options.gripper,
+                &table,
+                options.min_quality,
+                &self.config.decode,
+            ));
+        }
+        let ranked = rank_grasps(
+            grasps,
+            &RankConfig {
+                min_quality: options.min_quality,
+                max_per_object: self.config.max_grasps_per_object,
+                max_grasps: options.max_grasps,
+            },
+        );
+        let mut debug_views = Vec::new();
+        if options.keep_views {
+            let per_view = 4 * maps.size_px * maps.size_px;
+            for (object_index, o) in objects.iter().enumerate() {
+                for (v, view) in o.views.iter().enumerate() {
+                    let maps = inferred
+                        .iter()
+                        .position(|&e| e == (object_index, v))
+                        .map(|b| maps.data[b * per_view..(b + 1) * per_view].to_vec());
+                    debug_views.push(DebugView {
+                        object_id: o.object.id,
+                        view: view.clone(),
+                        maps,
+                    });
+                }
+            }
+        }
+        timings.decode = start.elapsed();
+        Ok(Plan {
+            grasps: ranked,
+            objects: objects.into_iter().map(|o| o.object).collect(),
+            table,
+            timings,
+            debug_views,
+        })
+    }
+
+    /// The whole pipeline with `net` run in-process.
+    pub fn plan(
+        &self,
+        scene: &SceneInput<'_>,
+        options: &PlanOptions,
+        net: &mut dyn GraspNet,
+    ) -> Result<Plan> {
+        if net.contract() != &self.contract {
+            return Err(Error::Backend(format!(
+                "network contract {:?} differs from the planner's {:?}",
+                net.contract().model_version,
+                self.contract.model_version
+            )));
+        }
+        let mut prepared = self.prepare(scene, options)?;
+        let start = Instant::now();
+        let maps = if prepared.batch.len == 0 {
+            GraspMaps {
+                size_px: prepared.batch.size_px,
+                len: 0,
+                data: Vec::new(),
+            }
+        } else {
+            net.infer(&prepared.batch)?
+        };
+        prepared.set_inference_time(start.elapsed());
+        self.finish(prepared, &maps)
+    }
+}
+
+/// World-frame approach direction of a grasp (its +z axis).
+pub fn approach_of(grasp: &Grasp) -> Vector3<f64> {
+    grasp.world_from_grasp.rotation * Vector3::z()
+}

@@ -1,0 +1,7 @@
+//! Segmentation: table plane removal, then Euclidean clustering into objects.
+
+mod cluster;
+mod table;
+
+pub use cluster::{ClusterConfig, euclidean_clusters};
+pub use table::{TableConfig, TablePlane, fit_table, points_above};

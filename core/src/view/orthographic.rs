@@ -1,0 +1,267 @@
+//! Orthographic virtual depth views of one object (DESIGN.md, method step 3).
+//!
+//! A view looks at the object's centroid along one axis of the object frame.
+//! Its own frame has x = image u (right), y = image v (down) and z = the
+//! viewing direction (into the object), right-handed:
+//!
+//! | view    | looks along (object frame)                  | u     | v  |
+//! |---------|---------------------------------------------|-------|----|
+//! | `Top`   | -Z                                          | +X    | -Y |
+//! | `Front` | -X (from the +X side, which faces the camera) | +Y  | -Z |
+//! | `Side`  | -Y or +Y, from whichever side faces the camera | -X or +X | -Z |
+//!
+//! Pixels have a fixed metric size (the model contract's `pixel_size_m`), so a
+//! width in pixels is a width in metres. Pixel `(u, v)` covers view-frame
+//! `x` in `[(u - l/2) s, (u + 1 - l/2) s)`, likewise `y`.
+//!
+//! **Z-buffer.** Each pixel keeps the nearest point (smallest view z).
+//!
+//! **Holes.** Points are sparser than pixels where the camera saw a surface
+//! at a grazing angle. One pass fills an empty pixel when at least
+//! [`HOLE_FILL_MIN_NEIGHBOURS`] of its 8 neighbours hold a surface, with the
+//! nearest of those depths; it reads the unfilled buffer, so the result does
+//! not depend on scan order and a fill never spreads. Larger empty areas are
+//! left empty: they are surfaces the camera did not see, and the network
+//! must not be shown invented ones.
+//!
+//! **Normalisation `cube-v1`.** The view sees a cube of side `L = l s` centred
+//! on the centroid. A filled pixel's value is `(L/2 - z) / L` clamped to
+//! [0, 1]: 1 at the cube face nearest the viewer, 0.5 at the centroid, 0 at
+//! the far face. Empty pixels are 0.
+
+use nalgebra::{Matrix3, Vector3};
+
+/// Empty pixels with at least this many filled 8-neighbours are filled.
+pub const HOLE_FILL_MIN_NEIGHBOURS: usize = 5;
+
+/// Which virtual camera.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ViewAxis {
+    /// Looking down along -Z.
+    Top,
+    /// Looking along -X, at the side facing the camera.
+    Front,
+    /// Looking along +-Y, at the side facing the camera.
+    Side,
+}
+
+impl ViewAxis {
+    /// The paper's three views, in their canonical order.
+    pub const ALL: [ViewAxis; 3] = [ViewAxis::Top, ViewAxis::Front, ViewAxis::Side];
+
+    /// Lower-case name, for logs and metrics.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Top => "top",
+            Self::Front => "front",
+            Self::Side => "side",
+        }
+    }
+
+    /// Columns (u, v, viewing direction) in the object frame. `camera_on_plus_y`
+    /// says which Y side the camera saw; only `Side` depends on it.
+    pub fn object_from_view(self, camera_on_plus_y: bool) -> Matrix3<f64> {
+        let (x, y, z) = (Vector3::x(), Vector3::y(), Vector3::z());
+        let (u, v, d) = match self {
+            Self::Top => (x, -y, -z),
+            Self::Front => (y, -z, -x),
+            Self::Side if camera_on_plus_y => (-x, -z, -y),
+            Self::Side => (x, -z, y),
+        };
+        Matrix3::from_columns(&[u, v, d])
+    }
+}
+
+/// One rendered view.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OrthoView {
+    /// Which view.
+    pub axis: ViewAxis,
+    /// Columns: image u, image v and viewing direction, in the object frame.
+    pub object_from_view: Matrix3<f64>,
+    /// Side in pixels.
+    pub size_px: usize,
+    /// Metric pixel size (m).
+    pub pixel_size_m: f32,
+    /// Network input, `cube-v1` normalised, row-major.
+    pub image: Vec<f32>,
+    /// View-frame z of the kept surface (m), `+inf` where empty, row-major.
+    pub depth_m: Vec<f32>,
+}
+
+impl OrthoView {
+    /// Renders the object points (object frame) into a `size_px` square view.
+    pub fn render(
+        axis: ViewAxis,
+        camera_on_plus_y: bool,
+        points_in_object: &[[f32; 3]],
+        size_px: usize,
+        pixel_size_m: f32,
+    ) -> Self {
+        let object_from_view = axis.object_from_view(camera_on_plus_y);
+        let view_from_object = object_from_view.transpose().cast::<f32>();
+        let l = size_px;
+        let inv = 1.0 / pixel_size_m;
+        let half = l as f32 * 0.5;
+        let mut depth = vec![f32::INFINITY; l * l];
+        for p in points_in_object {
+            let q = view_from_object * Vector3::new(p[0], p[1], p[2]);
+            let (u, v) = ((q.x * inv + half).floor(), (q.y * inv + half).floor());
+            if u < 0.0 || v < 0.0 || u >= l as f32 || v >= l as f32 {
+                continue;
+            }
+            let cell = &mut depth[v as usize * l + u as usize];
+            if q.z < *cell {
+                *cell = q.z;
+            }
+        }
+        let depth = fill_holes(&depth, l);
+        let cube = l as f32 * pixel_size_m;
+        let image = depth
+            .iter()
+            .map(|&z| {
+                if z.is_finite() {
+                    ((0.5 * cube - z) / cube).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        Self {
+            axis,
+            object_from_view,
+            size_px: l,
+            pixel_size_m,
+            image,
+            depth_m: depth,
+        }
+    }
+
+    /// Object-frame point at continuous pixel coordinates `(u, v)` (pixel
+    /// centres at `i + 0.5`) and view depth `z_m`.
+    pub fn point_in_object(&self, u: f64, v: f64, z_m: f64) -> Vector3<f64> {
+        let s = f64::from(self.pixel_size_m);
+        let half = self.size_px as f64 * 0.5;
+        self.object_from_view * Vector3::new((u - half) * s, (v - half) * s, z_m)
+    }
+
+    /// Continuous pixel coordinates and view depth of an object-frame point.
+    pub fn pixel_of(&self, p_in_object: &Vector3<f64>) -> (f64, f64, f64) {
+        let q = self.object_from_view.transpose() * p_in_object;
+        let s = f64::from(self.pixel_size_m);
+        let half = self.size_px as f64 * 0.5;
+        (q.x / s + half, q.y / s + half, q.z)
+    }
+
+    /// Nearest surface depth within `radius_m` of pixel `(u, v)` (pixel
+    /// indices), or `None` when no pixel there holds a surface.
+    pub fn nearest_depth_within(&self, u: usize, v: usize, radius_m: f32) -> Option<f32> {
+        let r = (radius_m / self.pixel_size_m).floor() as isize;
+        let l = self.size_px as isize;
+        let mut best = f32::INFINITY;
+        for dv in -r..=r {
+            for du in -r..=r {
+                if du * du + dv * dv > r * r {
+                    continue;
+                }
+                let (x, y) = (u as isize + du, v as isize + dv);
+                if x < 0 || y < 0 || x >= l || y >= l {
+                    continue;
+                }
+                best = best.min(self.depth_m[(y * l + x) as usize]);
+            }
+        }
+        best.is_finite().then_some(best)
+    }
+}
+
+/// One order-independent pass of the hole rule documented above.
+fn fill_holes(depth: &[f32], l: usize) -> Vec<f32> {
+    let mut out = depth.to_vec();
+    for v in 1..l.saturating_sub(1) {
+        for u in 1..l - 1 {
+            if depth[v * l + u].is_finite() {
+                continue;
+            }
+            let mut filled = 0;
+            let mut nearest = f32::INFINITY;
+            for (du, dv) in [
+                (-1, -1),
+                (0, -1),
+                (1, -1),
+                (-1, 0),
+                (1, 0),
+                (-1, 1),
+                (0, 1),
+                (1, 1),
+            ] {
+                let z = depth[(v as isize + dv) as usize * l + (u as isize + du) as usize];
+                if z.is_finite() {
+                    filled += 1;
+                    nearest = nearest.min(z);
+                }
+            }
+            if filled >= HOLE_FILL_MIN_NEIGHBOURS {
+                out[v * l + u] = nearest;
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn view_frames_are_right_handed() {
+        for axis in ViewAxis::ALL {
+            for plus_y in [false, true] {
+                let m = axis.object_from_view(plus_y);
+                assert!((m.determinant() - 1.0).abs() < 1e-12, "{axis:?}");
+                assert!((m.transpose() * m - Matrix3::identity()).norm() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn top_view_of_a_plate_is_flat_at_its_height() {
+        // A 5 x 5 cm plate 2 cm above the centroid, sampled every 1 mm.
+        let points: Vec<[f32; 3]> = (0..2500)
+            .map(|i| {
+                [
+                    ((i % 50) as f32 + 0.5) * 0.001 - 0.025,
+                    ((i / 50) as f32 + 0.5) * 0.001 - 0.025,
+                    0.02,
+                ]
+            })
+            .collect();
+        let view = OrthoView::render(ViewAxis::Top, true, &points, 32, 0.0025);
+        let filled: Vec<usize> = (0..32 * 32).filter(|&i| view.depth_m[i].is_finite()).collect();
+        assert_eq!(filled.len(), 20 * 20);
+        for &i in &filled {
+            assert!((view.depth_m[i] + 0.02).abs() < 1e-6);
+            // cube of 8 cm: (0.04 + 0.02) / 0.08
+            assert!((view.image[i] - 0.75).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn holes_fill_only_when_surrounded() {
+        let l = 5;
+        let mut depth = vec![f32::INFINITY; l * l];
+        for v in 1..4 {
+            for u in 1..4 {
+                depth[v * l + u] = 0.01 * (u + v) as f32;
+            }
+        }
+        depth[2 * l + 2] = f32::INFINITY; // a one-pixel hole inside a 3x3 patch
+        let out = fill_holes(&depth, l);
+        assert_eq!(out[2 * l + 2], 0.02, "nearest of the 8 neighbours");
+        assert!(
+            out[0].is_infinite() && out[l + 0].is_infinite(),
+            "edges with < 5 neighbours stay empty"
+        );
+        assert_eq!(out.iter().filter(|z| z.is_finite()).count(), 9);
+    }
+}

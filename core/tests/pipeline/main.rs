@@ -1,0 +1,39 @@
+//! Integration tests of the whole pipeline on ray-cast scenes.
+
+mod decoding;
+mod properties;
+mod scene;
+mod scenes;
+
+use mvgrasp_core::{
+    DepthEncoding, DepthFrame, GraspNet, MomentsNet, Plan, PlanOptions, Planner, PlannerConfig, SceneInput,
+    SensorInput, Workspace,
+};
+use scene::{Camera, Rendered, Scene};
+
+/// A workspace covering the table top up to 40 cm above it.
+pub fn table_workspace(scene: &Scene) -> Workspace {
+    let [hx, hy] = scene.table_half;
+    Workspace::new([-hx, -hy, scene.table_z - 0.05], [hx, hy, scene.table_z + 0.4]).expect("valid box")
+}
+
+/// Renders `scene` and plans on it with the analytic baseline network.
+pub fn plan_rendered(scene: &Scene, camera: &Camera, options: &PlanOptions) -> (Plan, Rendered) {
+    let rendered = scene::render(scene, camera);
+    let bytes = rendered.depth_bytes();
+    let input = SceneInput {
+        sensor: SensorInput::Depth(DepthFrame {
+            width: camera.width,
+            height: camera.height,
+            encoding: DepthEncoding::U16Millimetres,
+            data: &bytes,
+            intrinsics: camera.intrinsics,
+        }),
+        world_from_camera: camera.world_from_camera,
+        workspace: table_workspace(scene),
+    };
+    let mut net = MomentsNet::default();
+    let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).expect("planner");
+    let plan = planner.plan(&input, options, &mut net).expect("plan");
+    (plan, rendered)
+}
