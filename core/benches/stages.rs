@@ -1,1 +1,197 @@
-fn main() {}
+//! Per-stage benchmark of the pipeline on a 640x480 frame with 6 objects
+//! (everything except a learned network; the analytic baseline stands in
+//! for it where maps are needed). Run on one core:
+//!
+//! ```text
+//! taskset -c 0 cargo bench -p mvgrasp-core --bench stages
+//! ```
+
+#![allow(clippy::expect_used)] // a benchmark's set-up may stop on bad fixtures
+
+use std::hint::black_box;
+
+use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
+use mvgrasp_core::object::object_frame;
+use mvgrasp_core::segment::{euclidean_clusters, fit_table};
+use mvgrasp_core::select::view_entropy;
+use mvgrasp_core::sensor::{BlockMask, sample_world_points, world_points_above};
+use mvgrasp_core::{
+    DepthEncoding, DepthFrame, GraspNet, MomentsNet, OrthoView, PlanOptions, Planner, PlannerConfig,
+    SceneInput, SensorInput, ViewAxis, Workspace,
+};
+use nalgebra::{Point3, Vector3};
+
+#[allow(dead_code, clippy::all)]
+#[path = "../tests/pipeline/scene.rs"]
+mod scene;
+
+fn stages(c: &mut Criterion) {
+    let table_scene = scene::grid_scene(0.0, 6, 3, 0.13);
+    let camera = scene::Camera::orbit(Vector3::zeros(), 0.8, 50.0, -90.0);
+    let bytes = scene::render(&table_scene, &camera).depth_bytes();
+    let input = SceneInput {
+        sensor: SensorInput::Depth(DepthFrame {
+            width: camera.width,
+            height: camera.height,
+            encoding: DepthEncoding::U16Millimetres,
+            data: &bytes,
+            intrinsics: camera.intrinsics,
+        }),
+        world_from_camera: camera.world_from_camera,
+        workspace: Workspace::new([-0.6, -0.4, -0.05], [0.6, 0.4, 0.4]).expect("workspace"),
+    };
+    let mut net = MomentsNet::default();
+    let contract = net.contract().clone();
+    let planner = Planner::new(PlannerConfig::default(), contract.clone()).expect("planner");
+    let config = planner.config().clone();
+    let options = PlanOptions::default();
+
+    // Intermediate results, so each stage is timed on its own input.
+    let (sensor, pose, workspace) = (&input.sensor, &input.world_from_camera, &input.workspace);
+    let sparse = sample_world_points(sensor, pose, workspace, config.table.fit_stride).expect("cloud");
+    let table = fit_table(&sparse.points, &config.table).expect("table");
+    let half_space = table.above(config.table.object_min_height_m);
+    let SensorInput::Depth(frame) = sensor else {
+        unreachable!("a depth frame")
+    };
+    let near = BlockMask::from_sample(frame, &sparse, config.table.fit_stride, &half_space);
+    let above = world_points_above(sensor, pose, workspace, &half_space, Some(&near)).expect("objects");
+    let full = world_points_above(sensor, pose, workspace, &half_space, None).expect("objects");
+    assert_eq!(
+        above.len(),
+        full.len(),
+        "the block mask must not lose object points here"
+    );
+    eprintln!("block mask keeps {:.1}% of the frame", 100.0 * near.coverage());
+    let clusters = euclidean_clusters(&above, &config.cluster);
+    assert_eq!(clusters.len(), 6, "the bench scene must hold 6 objects");
+    let cam = Point3::from(camera.world_from_camera.translation.vector);
+    let framed: Vec<_> = clusters.iter().map(|cl| object_frame(&above, cl, &cam)).collect();
+    let views: Vec<OrthoView> = framed
+        .iter()
+        .flat_map(|(_, local)| {
+            ViewAxis::ALL.map(|axis| {
+                OrthoView::render(axis, true, local, contract.input_size_px, contract.pixel_size_m)
+            })
+        })
+        .collect();
+    let prepared = planner.prepare(&input, &options).expect("prepare");
+    let maps = net.infer(prepared.batch()).expect("maps");
+    eprintln!(
+        "bench frame: {} sparse points, {} object points, {} objects, {} views inferred",
+        sparse.points.len(),
+        above.len(),
+        clusters.len(),
+        prepared.batch().len
+    );
+
+    let mut group = c.benchmark_group("640x480_6_objects");
+    group.bench_function("1_sensor_sparse_for_table", |b| {
+        b.iter(|| sample_world_points(black_box(sensor), pose, workspace, config.table.fit_stride))
+    });
+    group.bench_function("2_table_ransac", |b| {
+        b.iter(|| fit_table(black_box(&sparse.points), &config.table))
+    });
+    group.bench_function("3_sensor_objects_above_table", |b| {
+        b.iter(|| {
+            let near = BlockMask::from_sample(frame, &sparse, config.table.fit_stride, &half_space);
+            world_points_above(black_box(sensor), pose, workspace, &half_space, Some(&near))
+        })
+    });
+    group.bench_function("3_sensor_objects_full_frame_no_mask", |b| {
+        b.iter(|| world_points_above(black_box(sensor), pose, workspace, &half_space, None))
+    });
+    group.bench_function("4_cluster", |b| {
+        b.iter(|| euclidean_clusters(black_box(&above), &config.cluster))
+    });
+    group.bench_function("4_cluster_reference_kiddo_kd_tree_flood_fill", |b| {
+        b.iter(|| kd_tree_flood_fill(black_box(&above), config.cluster.tolerance_m))
+    });
+    group.bench_function("5_object_frames", |b| {
+        b.iter(|| {
+            clusters
+                .iter()
+                .map(|cl| object_frame(black_box(&above), cl, &cam))
+                .collect::<Vec<_>>()
+        })
+    });
+    group.bench_function("6_render_views", |b| {
+        b.iter(|| {
+            framed
+                .iter()
+                .flat_map(|(_, local)| {
+                    ViewAxis::ALL.map(|axis| {
+                        OrthoView::render(
+                            axis,
+                            true,
+                            black_box(local),
+                            contract.input_size_px,
+                            contract.pixel_size_m,
+                        )
+                    })
+                })
+                .collect::<Vec<_>>()
+        })
+    });
+    group.bench_function("7_entropy", |b| {
+        b.iter(|| {
+            views
+                .iter()
+                .map(|v| view_entropy(black_box(&v.image)))
+                .sum::<f64>()
+        })
+    });
+    group.bench_function("8_decode_and_rank", |b| {
+        b.iter_batched(
+            || planner.prepare(&input, &options).expect("prepare"),
+            |p| planner.finish(p, &maps).expect("finish"),
+            BatchSize::SmallInput,
+        )
+    });
+    group.bench_function("all_but_network", |b| {
+        b.iter(|| {
+            let p = planner.prepare(black_box(&input), &options).expect("prepare");
+            planner.finish(p, &maps).expect("finish")
+        })
+    });
+    let map: Vec<f32> = (0..96 * 96).map(|i| (i % 97) as f32 / 97.0).collect();
+    group.bench_function("smooth_one_96px_map", |b| {
+        b.iter(|| mvgrasp_core::decode::smooth(black_box(&map), 96, 1.0))
+    });
+    group.bench_function("baseline_net_6_views", |b| {
+        b.iter(|| net.infer(black_box(prepared.batch())))
+    });
+    group.finish();
+}
+
+/// The textbook alternative to `euclidean_clusters`' cell method: a flood
+/// fill over k-d tree range queries, one per point (same components).
+fn kd_tree_flood_fill(points: &[[f32; 3]], tolerance_m: f32) -> usize {
+    let mut tree: kiddo::KdTree<f32, 3> = kiddo::KdTree::with_capacity(points.len());
+    for (i, p) in points.iter().enumerate() {
+        tree.add(p, i as u64);
+    }
+    let mut label = vec![u32::MAX; points.len()];
+    let mut next = 0;
+    let mut stack = Vec::new();
+    for seed in 0..points.len() {
+        if label[seed] != u32::MAX {
+            continue;
+        }
+        label[seed] = next;
+        stack.push(seed);
+        while let Some(v) = stack.pop() {
+            for n in tree.within_unsorted::<kiddo::SquaredEuclidean>(&points[v], tolerance_m * tolerance_m) {
+                if label[n.item as usize] == u32::MAX {
+                    label[n.item as usize] = next;
+                    stack.push(n.item as usize);
+                }
+            }
+        }
+        next += 1;
+    }
+    next as usize
+}
+
+criterion_group!(benches, stages);
+criterion_main!(benches);

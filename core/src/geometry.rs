@@ -86,10 +86,11 @@ impl Workspace {
     }
 }
 
-/// True when `p` lies inside the (inclusive) bounds.
+/// Rounds half away from zero with a cast (no libm call on baseline x86-64);
+/// saturates outside the i64 range.
 #[inline]
-pub(crate) fn inside(p: &[f32; 3], lo: &[f32; 3], hi: &[f32; 3]) -> bool {
-    p[0] >= lo[0] && p[0] <= hi[0] && p[1] >= lo[1] && p[1] <= hi[1] && p[2] >= lo[2] && p[2] <= hi[2]
+pub(crate) fn round_to_i64(x: f64) -> i64 {
+    (x + 0.5f64.copysign(x)) as i64
 }
 
 /// World "up" (gravity is -z).

@@ -12,9 +12,9 @@ use crate::geometry::Workspace;
 use crate::gripper::Gripper;
 use crate::infer::{GraspMaps, GraspNet, ModelContract, NORMALISATION_CUBE_V1, ViewBatch};
 use crate::object::{ObjectFrame, object_frame};
-use crate::segment::{ClusterConfig, TableConfig, TablePlane, euclidean_clusters, fit_table, points_above};
+use crate::segment::{ClusterConfig, TableConfig, TablePlane, euclidean_clusters, fit_table};
 use crate::select::{ViewPolicy, select_views, view_entropy};
-use crate::sensor::{SensorInput, world_points};
+use crate::sensor::{BlockMask, SensorInput, sample_world_points, world_points, world_points_above};
 use crate::view::{OrthoView, ViewAxis};
 
 /// One sensor frame and where it was taken from.
@@ -99,13 +99,18 @@ impl Default for PlannerConfig {
     }
 }
 
+/// Below this many sparse points the table is fitted on the full cloud.
+const MIN_POINTS_TO_FIT_SPARSE: usize = 1000;
+
 /// Wall time of each stage.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StageTimings {
-    /// Frame -> world points, cropped.
+    /// Frame -> sparse world points, cropped (for the table fit).
     pub sensor: Duration,
-    /// Table plane fit and removal.
+    /// Table plane fit.
     pub table: Duration,
+    /// Frame -> world points above the table, full resolution.
+    pub sensor_objects: Duration,
     /// Euclidean clustering.
     pub cluster: Duration,
     /// Object frames.
@@ -123,7 +128,14 @@ pub struct StageTimings {
 impl StageTimings {
     /// Every stage except the network.
     pub fn without_inference(&self) -> Duration {
-        self.sensor + self.table + self.cluster + self.frames + self.views + self.select + self.decode
+        self.sensor
+            + self.table
+            + self.sensor_objects
+            + self.cluster
+            + self.frames
+            + self.views
+            + self.select
+            + self.decode
     }
 }
 
@@ -251,12 +263,27 @@ impl Planner {
             clock = now;
         };
 
-        let cloud = world_points(&scene.sensor, &scene.world_from_camera, &scene.workspace)?;
+        // The table is fitted on a sparse grid, then one full-resolution pass
+        // keeps only what stands on it: the table's points are never stored.
+        let (sensor, pose, workspace) = (&scene.sensor, &scene.world_from_camera, &scene.workspace);
+        let mut sparse_stride = self.config.table.fit_stride.max(1);
+        let mut sparse = sample_world_points(sensor, pose, workspace, sparse_stride)?;
+        if sparse.points.len() < MIN_POINTS_TO_FIT_SPARSE {
+            sparse = world_points(sensor, pose, workspace)?;
+            sparse_stride = 1;
+        }
         lap(&mut timings.sensor);
-
-        let table = fit_table(&cloud.points, &self.config.table)?;
-        let above = points_above(&cloud.points, &table, self.config.table.object_min_height_m);
+        let table = fit_table(&sparse.points, &self.config.table)?;
         lap(&mut timings.table);
+        let half_space = table.above(self.config.table.object_min_height_m);
+        let near = match sensor {
+            SensorInput::Depth(frame) if sparse_stride > 1 => {
+                Some(BlockMask::from_sample(frame, &sparse, sparse_stride, &half_space))
+            }
+            _ => None,
+        };
+        let above = world_points_above(sensor, pose, workspace, &half_space, near.as_ref())?;
+        lap(&mut timings.sensor_objects);
 
         let clusters = euclidean_clusters(&above, &self.config.cluster);
         lap(&mut timings.cluster);

@@ -111,7 +111,8 @@ impl MomentsNet {
         );
         for i in 0..n {
             let (du, dv) = ((i % l) as f32 - cu as f32, (i / l) as f32 - cv as f32);
-            out[q0 + i] = peak * (-(du * du + dv * dv) * inv_two_sigma_sq).exp();
+            let q = peak * (-(du * du + dv * dv) * inv_two_sigma_sq).exp();
+            out[q0 + i] = if q > 1e-6 { q } else { 0.0 }; // no denormal tails
             out[c0 + i] = cos2;
             out[s0 + i] = sin2;
             out[w0 + i] = width;

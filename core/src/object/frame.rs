@@ -13,6 +13,8 @@
 
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
+use crate::geometry::round_to_i64;
+
 /// An object's frame and the box its points fill in that frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ObjectFrame {
@@ -39,14 +41,15 @@ pub fn object_frame(
     let (mut sx, mut sy, mut sz, mut sxx, mut syy, mut sxy) = (0i128, 0i128, 0i128, 0i128, 0i128, 0i128);
     for &i in indices {
         let p = points[i as usize];
-        let q = |v: f32| (f64::from(v) * MICRONS).round() as i128;
+        let q = |v: f32| round_to_i64(f64::from(v) * MICRONS);
         let (x, y, z) = (q(p[0]), q(p[1]), q(p[2]));
-        sx += x;
-        sy += y;
-        sz += z;
-        sxx += x * x;
-        syy += y * y;
-        sxy += x * y;
+        // Products fit i64 for coordinates under 3 km; the sums need i128.
+        sx += i128::from(x);
+        sy += i128::from(y);
+        sz += i128::from(z);
+        sxx += i128::from(x * x);
+        syy += i128::from(y * y);
+        sxy += i128::from(x * y);
     }
     let centroid = Vector3::new(sx as f64, sy as f64, sz as f64) / (n as f64 * MICRONS);
     // n^2 * covariance, exact.

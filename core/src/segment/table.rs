@@ -12,6 +12,7 @@ use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
 use crate::error::{Error, Result};
 use crate::rng::SplitMix64;
+use crate::sensor::Above;
 
 /// Settings of the table stage.
 #[derive(Debug, Clone, PartialEq)]
@@ -30,6 +31,9 @@ pub struct TableConfig {
     pub object_min_height_m: f64,
     /// Seed of the sampling stream.
     pub seed: u64,
+    /// The plane is fitted on every `fit_stride`-th row and column of a depth
+    /// image (every `fit_stride^2`-th point of a cloud).
+    pub fit_stride: usize,
 }
 
 impl Default for TableConfig {
@@ -42,6 +46,7 @@ impl Default for TableConfig {
             min_support_fraction: 0.08,
             object_min_height_m: 0.008,
             seed: 0x7AB1E,
+            fit_stride: 4,
         }
     }
 }
@@ -61,6 +66,15 @@ impl TablePlane {
     /// Signed height of a world point above the plane (m).
     pub fn height_of(&self, p: &Vector3<f64>) -> f64 {
         self.normal.dot(p) + self.offset_m
+    }
+
+    /// The half-space more than `min_height_m` above the plane.
+    pub fn above(&self, min_height_m: f64) -> Above {
+        let n = self.normal.cast::<f32>();
+        Above {
+            normal: [n.x, n.y, n.z],
+            offset: (self.offset_m - min_height_m) as f32,
+        }
     }
 }
 

@@ -11,7 +11,7 @@ pub use intrinsics::Intrinsics;
 use nalgebra::{Isometry3, Point3};
 
 use crate::error::{Error, Result};
-use crate::geometry::{Workspace, inside};
+use crate::geometry::Workspace;
 
 /// How depth values are stored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -81,10 +81,22 @@ pub struct WorldCloud {
     pub points: Vec<[f32; 3]>,
     /// Readings that were valid before the crop.
     pub valid: usize,
+    /// For a depth image: the pixel (`v * width + u`) of each point.
+    pub pixels: Vec<u32>,
 }
 
 /// Largest image side accepted (pixels); guards allocations on bad input.
 pub const MAX_IMAGE_SIDE_PX: u32 = 8192;
+
+/// A half-space `normal . p + offset > 0` (world frame), used to keep only the
+/// points above the table while converting.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Above {
+    /// Unit normal.
+    pub normal: [f32; 3],
+    /// Offset (m); a point is kept when `normal . p + offset > 0`.
+    pub offset: f32,
+}
 
 /// Converts a sensor input into world-frame points inside `workspace`.
 ///
@@ -96,10 +108,12 @@ pub fn world_points(
     world_from_camera: &Isometry3<f64>,
     workspace: &Workspace,
 ) -> Result<WorldCloud> {
-    let cloud = match input {
-        SensorInput::Depth(frame) => depth_to_world(frame, world_from_camera, workspace)?,
-        SensorInput::Cloud(cloud) => cloud_to_world(cloud, world_from_camera, workspace)?,
-    };
+    let cloud = convert(
+        input,
+        world_from_camera,
+        &Keep::new(workspace, None),
+        Sampling::Grid(1),
+    )?;
     if cloud.valid == 0 {
         let (field, samples) = match input {
             SensorInput::Depth(f) => ("depth.data", f.width as usize * f.height as usize),
@@ -113,6 +127,156 @@ pub fn world_points(
         });
     }
     Ok(cloud)
+}
+
+/// Like [`world_points`], on a sparse grid: every `stride`-th row and column of
+/// a depth image, every `stride * stride`-th point of a cloud. Enough to fit
+/// the table at a sixteenth of the cost; it reports no error for an empty
+/// result (the caller falls back to [`world_points`], which names the cause).
+pub fn sample_world_points(
+    input: &SensorInput<'_>,
+    world_from_camera: &Isometry3<f64>,
+    workspace: &Workspace,
+    stride: usize,
+) -> Result<WorldCloud> {
+    convert(
+        input,
+        world_from_camera,
+        &Keep::new(workspace, None),
+        Sampling::Grid(stride.max(1)),
+    )
+}
+
+/// Every point inside `workspace` and `above` at full resolution: the object
+/// points, without ever storing the table. With `near`, only the pixels of
+/// the blocks it marks are converted (a depth image; a cloud ignores it).
+pub fn world_points_above(
+    input: &SensorInput<'_>,
+    world_from_camera: &Isometry3<f64>,
+    workspace: &Workspace,
+    above: &Above,
+    near: Option<&BlockMask>,
+) -> Result<Vec<[f32; 3]>> {
+    let keep = Keep::new(workspace, Some(above));
+    let sampling = match near {
+        Some(mask) => Sampling::Blocks(mask),
+        None => Sampling::Grid(1),
+    };
+    Ok(convert(input, world_from_camera, &keep, sampling)?.points)
+}
+
+/// Blocks of `stride x stride` pixels of a depth image that are worth a
+/// full-resolution look: those whose sparse sample stood above the table,
+/// and their 8 neighbours (so object edges between samples are not lost).
+/// An object narrower than a block and missed by every sample is missed,
+/// which at stride 4 means under ~4 px: far below the smallest cluster.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlockMask {
+    stride: usize,
+    blocks_wide: usize,
+    marked: Vec<bool>,
+}
+
+impl BlockMask {
+    /// The mask from a sparse sample taken with `stride` of `frame`: marks
+    /// the blocks of the sampled points inside `above`, dilated by one block.
+    pub fn from_sample(frame: &DepthFrame<'_>, sample: &WorldCloud, stride: usize, above: &Above) -> Self {
+        let stride = stride.max(1);
+        let (w, h) = (frame.width as usize, frame.height as usize);
+        let (bw, bh) = (w.div_ceil(stride), h.div_ceil(stride));
+        let mut hit = vec![false; bw * bh];
+        let n = above.normal;
+        for (p, &pixel) in sample.points.iter().zip(&sample.pixels) {
+            if n[0] * p[0] + n[1] * p[1] + n[2] * p[2] + above.offset > 0.0 {
+                let (u, v) = (pixel as usize % w, pixel as usize / w);
+                hit[(v / stride) * bw + u / stride] = true;
+            }
+        }
+        let mut marked = vec![false; bw * bh];
+        for by in 0..bh {
+            for bx in 0..bw {
+                if hit[by * bw + bx] {
+                    for y in by.saturating_sub(1)..=(by + 1).min(bh - 1) {
+                        for x in bx.saturating_sub(1)..=(bx + 1).min(bw - 1) {
+                            marked[y * bw + x] = true;
+                        }
+                    }
+                }
+            }
+        }
+        Self {
+            stride,
+            blocks_wide: bw,
+            marked,
+        }
+    }
+
+    /// Share of the image the mask keeps.
+    pub fn coverage(&self) -> f64 {
+        self.marked.iter().filter(|&&m| m).count() as f64 / self.marked.len().max(1) as f64
+    }
+}
+
+/// Which pixels of a depth image (or points of a cloud) are converted.
+#[derive(Debug, Clone, Copy)]
+enum Sampling<'a> {
+    /// Every n-th row and column (every n^2-th point of a cloud).
+    Grid(usize),
+    /// Every pixel of the marked blocks (every point of a cloud).
+    Blocks(&'a BlockMask),
+}
+
+fn convert(
+    input: &SensorInput<'_>,
+    world_from_camera: &Isometry3<f64>,
+    keep: &Keep,
+    sampling: Sampling<'_>,
+) -> Result<WorldCloud> {
+    match input {
+        SensorInput::Depth(frame) => depth_to_world(frame, world_from_camera, keep, sampling),
+        SensorInput::Cloud(cloud) => {
+            let step = match sampling {
+                Sampling::Grid(n) => n * n,
+                Sampling::Blocks(_) => 1,
+            };
+            cloud_to_world(cloud, world_from_camera, keep, step)
+        }
+    }
+}
+
+/// The per-point tests: the workspace box and the half-space.
+struct Keep {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    above: Above,
+}
+
+impl Keep {
+    fn new(workspace: &Workspace, above: Option<&Above>) -> Self {
+        let (lo, hi) = workspace.bounds_f32();
+        // "Above nothing": 0 . p + 1 > 0 always holds.
+        let above = above.copied().unwrap_or(Above {
+            normal: [0.0; 3],
+            offset: 1.0,
+        });
+        Self { lo, hi, above }
+    }
+
+    #[inline(always)]
+    fn inside(&self, p: &[f32; 3]) -> bool {
+        (p[0] >= self.lo[0])
+            & (p[0] <= self.hi[0])
+            & (p[1] >= self.lo[1])
+            & (p[1] <= self.hi[1])
+            & (p[2] >= self.lo[2])
+            & (p[2] <= self.hi[2])
+    }
+
+    #[inline(always)]
+    fn test(&self, p: &[f32; 3]) -> bool {
+        let n = &self.above.normal;
+        self.inside(p) & (n[0] * p[0] + n[1] * p[1] + n[2] * p[2] + self.above.offset > 0.0)
+    }
 }
 
 fn check_frame(frame: &DepthFrame<'_>) -> Result<(usize, usize)> {
@@ -140,14 +304,16 @@ fn check_frame(frame: &DepthFrame<'_>) -> Result<(usize, usize)> {
 
 /// Depth image -> world points. The camera ray of pixel (u, v) in the world is
 /// `R * ((u-cx)/fx, (v-cy)/fy, 1)`, which splits into a per-column and a
-/// per-row term, so each pixel costs two vector adds and a scale.
+/// per-row term, so each pixel costs two vector adds and a scale; its height
+/// over the half-space splits the same way and is tested first, so a table
+/// pixel costs one multiply-add.
 fn depth_to_world(
     frame: &DepthFrame<'_>,
     world_from_camera: &Isometry3<f64>,
-    workspace: &Workspace,
+    keep: &Keep,
+    sampling: Sampling<'_>,
 ) -> Result<WorldCloud> {
     let (w, h) = check_frame(frame)?;
-    debug_assert_eq!(frame.data.len(), w * h * frame.encoding.bytes_per_pixel());
     let k = &frame.intrinsics;
     let r = world_from_camera.rotation.to_rotation_matrix();
     let r = r.matrix();
@@ -162,50 +328,74 @@ fn depth_to_world(
             ]
         })
         .collect();
-    let (lo, hi) = workspace.bounds_f32();
     let origin = [t.x as f32, t.y as f32, t.z as f32];
-    let mut cloud = WorldCloud {
-        points: Vec::with_capacity(w * h / 2),
-        valid: 0,
-    };
+    let n = keep.above.normal;
+    let dot = |a: &[f32; 3]| n[0] * a[0] + n[1] * a[1] + n[2] * a[2];
+    let h0 = dot(&origin) + keep.above.offset;
+    let column_height: Vec<f32> = column_term.iter().map(dot).collect();
     let bpp = frame.encoding.bytes_per_pixel();
-    for (v, row) in frame.data.chunks_exact(w * bpp).enumerate() {
+    let read = |row: &[u8], u: usize| -> f32 {
+        match frame.encoding {
+            DepthEncoding::U16Millimetres => {
+                f32::from(u16::from_le_bytes([row[2 * u], row[2 * u + 1]])) * 1e-3
+            }
+            DepthEncoding::F32Metres => {
+                f32::from_le_bytes([row[4 * u], row[4 * u + 1], row[4 * u + 2], row[4 * u + 3]])
+            }
+        }
+    };
+    let mut out = WorldCloud::default();
+    let row_pixels = |v: usize, columns: &mut dyn Iterator<Item = usize>, out: &mut WorldCloud| {
+        let row = &frame.data[v * w * bpp..(v + 1) * w * bpp];
         let y = (v as f64 - k.cy) / k.fy;
         let row_term = [
             (r[(0, 1)] * y + r[(0, 2)]) as f32,
             (r[(1, 1)] * y + r[(1, 2)]) as f32,
             (r[(2, 1)] * y + r[(2, 2)]) as f32,
         ];
-        let mut emit = |u: usize, z: f32| {
+        let row_height = dot(&row_term);
+        for u in columns {
+            let z = read(row, u);
             // 0, NaN, +-inf and negative readings are "no reading".
-            if !(z > 0.0 && z.is_finite()) {
-                return;
+            if !((z > 0.0) & (z < f32::INFINITY)) {
+                continue;
             }
-            cloud.valid += 1;
+            out.valid += 1;
+            if h0 + z * (column_height[u] + row_height) <= 0.0 {
+                continue;
+            }
             let c = &column_term[u];
             let p = [
                 origin[0] + z * (c[0] + row_term[0]),
                 origin[1] + z * (c[1] + row_term[1]),
                 origin[2] + z * (c[2] + row_term[2]),
             ];
-            if inside(&p, &lo, &hi) {
-                cloud.points.push(p);
+            if keep.inside(&p) {
+                out.points.push(p);
+                out.pixels.push((v * w + u) as u32);
             }
-        };
-        match frame.encoding {
-            DepthEncoding::U16Millimetres => {
-                for (u, b) in row.chunks_exact(2).enumerate() {
-                    emit(u, f32::from(u16::from_le_bytes([b[0], b[1]])) * 1e-3);
-                }
+        }
+    };
+    match sampling {
+        Sampling::Grid(stride) => {
+            for v in (0..h).step_by(stride) {
+                row_pixels(v, &mut (0..w).step_by(stride), &mut out);
             }
-            DepthEncoding::F32Metres => {
-                for (u, b) in row.chunks_exact(4).enumerate() {
-                    emit(u, f32::from_le_bytes([b[0], b[1], b[2], b[3]]));
-                }
+        }
+        Sampling::Blocks(mask) => {
+            let s = mask.stride;
+            for v in 0..h {
+                let blocks = &mask.marked[(v / s) * mask.blocks_wide..(v / s + 1) * mask.blocks_wide];
+                let mut columns = blocks
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, m)| **m)
+                    .flat_map(|(b, _)| b * s..((b + 1) * s).min(w));
+                row_pixels(v, &mut columns, &mut out);
             }
         }
     }
-    Ok(cloud)
+    Ok(out)
 }
 
 /// Largest cloud accepted (points); guards allocations on bad input.
@@ -214,9 +404,10 @@ pub const MAX_CLOUD_POINTS: usize = 5_000_000;
 fn cloud_to_world(
     cloud: &PointCloud<'_>,
     world_from_camera: &Isometry3<f64>,
-    workspace: &Workspace,
+    keep: &Keep,
+    step: usize,
 ) -> Result<WorldCloud> {
-    if cloud.xyz.len() % 12 != 0 {
+    if !cloud.xyz.len().is_multiple_of(12) {
         return Err(Error::invalid(
             "cloud.xyz",
             format!(
@@ -233,29 +424,23 @@ fn cloud_to_world(
         ));
     }
     let transform = match cloud.frame {
-        CloudFrame::Camera => Some(world_from_camera.cast::<f32>()),
-        CloudFrame::World => None,
+        CloudFrame::Camera => world_from_camera.cast::<f32>(),
+        CloudFrame::World => Isometry3::identity(),
     };
-    let (lo, hi) = workspace.bounds_f32();
     let mut out = WorldCloud {
-        points: Vec::with_capacity(n),
-        valid: 0,
+        points: Vec::with_capacity(n / step),
+        ..WorldCloud::default()
     };
-    for b in cloud.xyz.chunks_exact(12) {
+    for b in cloud.xyz.chunks_exact(12).step_by(step) {
         let f = |i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
         let p = [f(0), f(4), f(8)];
         if p.iter().any(|c| !c.is_finite()) {
             continue;
         }
         out.valid += 1;
-        let p = match &transform {
-            Some(t) => {
-                let q = t * Point3::from(p);
-                [q.x, q.y, q.z]
-            }
-            None => p,
-        };
-        if inside(&p, &lo, &hi) {
+        let q = transform * Point3::from(p);
+        let p = [q.x, q.y, q.z];
+        if keep.test(&p) {
             out.points.push(p);
         }
     }
@@ -311,12 +496,8 @@ mod tests {
         // Pixel (0, 0) at 1 m: camera point ((0-1.5)/500, (0-1)/500, 1); a half
         // turn about x maps (x, y, z) -> (x, -y, -z), then the translation.
         let expected = [0.1 - 1.5 / 500.0, 0.2 + 1.0 / 500.0, 0.9 - 1.0];
-        for i in 0..3 {
-            assert!(
-                (a.points[0][i] - expected[i] as f32).abs() < 1e-6,
-                "{:?}",
-                a.points[0]
-            );
+        for (got, want) in a.points[0].iter().zip(expected) {
+            assert!((got - want as f32).abs() < 1e-6, "{:?}", a.points[0]);
         }
     }
 

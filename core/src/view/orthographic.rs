@@ -104,18 +104,25 @@ impl OrthoView {
         let inv = 1.0 / pixel_size_m;
         let half = l as f32 * 0.5;
         let mut depth = vec![f32::INFINITY; l * l];
+        let mut filled_box = PixelBox::EMPTY;
         for p in points_in_object {
             let q = view_from_object * Vector3::new(p[0], p[1], p[2]);
-            let (u, v) = ((q.x * inv + half).floor(), (q.y * inv + half).floor());
-            if u < 0.0 || v < 0.0 || u >= l as f32 || v >= l as f32 {
+            let (u, v) = (q.x * inv + half, q.y * inv + half);
+            // Negative coordinates are outside; for the rest the cast is the floor.
+            if !(u >= 0.0 && v >= 0.0) {
                 continue;
             }
-            let cell = &mut depth[v as usize * l + u as usize];
+            let (u, v) = (u as usize, v as usize);
+            if u >= l || v >= l {
+                continue;
+            }
+            filled_box.include(u, v);
+            let cell = &mut depth[v * l + u];
             if q.z < *cell {
                 *cell = q.z;
             }
         }
-        let depth = fill_holes(&depth, l);
+        let depth = fill_holes(&depth, l, &filled_box);
         let cube = l as f32 * pixel_size_m;
         let image = depth
             .iter()
@@ -175,33 +182,51 @@ impl OrthoView {
     }
 }
 
-/// One order-independent pass of the hole rule documented above.
-fn fill_holes(depth: &[f32], l: usize) -> Vec<f32> {
+/// Inclusive pixel bounds of the filled pixels.
+#[derive(Debug, Clone, Copy)]
+struct PixelBox {
+    u0: usize,
+    u1: usize,
+    v0: usize,
+    v1: usize,
+}
+
+impl PixelBox {
+    const EMPTY: Self = Self {
+        u0: usize::MAX,
+        u1: 0,
+        v0: usize::MAX,
+        v1: 0,
+    };
+
+    #[inline]
+    fn include(&mut self, u: usize, v: usize) {
+        (self.u0, self.u1, self.v0, self.v1) =
+            (self.u0.min(u), self.u1.max(u), self.v0.min(v), self.v1.max(v));
+    }
+}
+
+/// One order-independent pass of the hole rule documented above, over the
+/// box of the filled pixels (nothing outside it can be filled).
+fn fill_holes(depth: &[f32], l: usize, filled: &PixelBox) -> Vec<f32> {
     let mut out = depth.to_vec();
-    for v in 1..l.saturating_sub(1) {
-        for u in 1..l - 1 {
+    if filled.u0 > filled.u1 || l < 3 {
+        return out;
+    }
+    for v in filled.v0.max(1)..=filled.v1.min(l - 2) {
+        for u in filled.u0.max(1)..=filled.u1.min(l - 2) {
             if depth[v * l + u].is_finite() {
                 continue;
             }
-            let mut filled = 0;
+            let mut count = 0;
             let mut nearest = f32::INFINITY;
-            for (du, dv) in [
-                (-1, -1),
-                (0, -1),
-                (1, -1),
-                (-1, 0),
-                (1, 0),
-                (-1, 1),
-                (0, 1),
-                (1, 1),
-            ] {
-                let z = depth[(v as isize + dv) as usize * l + (u as isize + du) as usize];
-                if z.is_finite() {
-                    filled += 1;
+            for row in [v - 1, v, v + 1] {
+                for &z in &depth[row * l + u - 1..=row * l + u + 1] {
+                    count += usize::from(z.is_finite());
                     nearest = nearest.min(z);
                 }
             }
-            if filled >= HOLE_FILL_MIN_NEIGHBOURS {
+            if count >= HOLE_FILL_MIN_NEIGHBOURS {
                 out[v * l + u] = nearest;
             }
         }
@@ -256,10 +281,16 @@ mod tests {
             }
         }
         depth[2 * l + 2] = f32::INFINITY; // a one-pixel hole inside a 3x3 patch
-        let out = fill_holes(&depth, l);
+        let mut filled = PixelBox::EMPTY;
+        for v in 1..4 {
+            for u in 1..4 {
+                filled.include(u, v);
+            }
+        }
+        let out = fill_holes(&depth, l, &filled);
         assert_eq!(out[2 * l + 2], 0.02, "nearest of the 8 neighbours");
         assert!(
-            out[0].is_infinite() && out[l + 0].is_infinite(),
+            out[0].is_infinite() && out[l].is_infinite(),
             "edges with < 5 neighbours stay empty"
         );
         assert_eq!(out.iter().filter(|z| z.is_finite()).count(), 9);

@@ -1,5 +1,7 @@
 //! Integration tests of the whole pipeline on ray-cast scenes.
 
+#![allow(clippy::expect_used)] // fixtures stop the test on bad set-up
+
 mod decoding;
 mod properties;
 mod scene;

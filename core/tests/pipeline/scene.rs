@@ -144,7 +144,7 @@ impl Camera {
         let x = z
             .cross(&Vector3::z())
             .try_normalize(1e-9)
-            .unwrap_or_else(|| Vector3::x());
+            .unwrap_or_else(Vector3::x);
         let y = z.cross(&x);
         let rotation = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z]));
         Self {
@@ -207,10 +207,10 @@ pub fn render(scene: &Scene, camera: &Camera) -> Rendered {
                 }
             }
             for (i, shape) in scene.shapes.iter().enumerate() {
-                if let Some(t) = shape.hit(&origin, &dir) {
-                    if t < best.0 {
-                        best = (t, 2 + i as u16);
-                    }
+                if let Some(t) = shape.hit(&origin, &dir)
+                    && t < best.0
+                {
+                    best = (t, 2 + i as u16);
                 }
             }
             if best.1 != 0 {
