@@ -93,7 +93,7 @@ fn connected_components(points: &[[f32; 3]], tolerance_m: f32) -> Vec<u32> {
     let cells = Cells::new(points, edge);
 
     let mut sets = UnionFind::new(cells.len());
-    let mut consider = |a: usize, b: usize, sets: &mut UnionFind| {
+    let consider = |a: usize, b: usize, sets: &mut UnionFind| {
         if sets.find(a) != sets.find(b)
             && cells.may_touch(a, b, radius_sq)
             && cells.any_pair_within(points, a, b, radius_sq)
@@ -211,12 +211,16 @@ enum CellIndex {
     Sparse(FxHashMap<[u32; 3], u32>),
 }
 
-/// Integer cell coordinate of `v`; the offset makes it positive before the
-/// cast, so truncation is the floor (no libm call on baseline x86-64).
+/// Integer cell coordinate of `v`, offset by 2^24 so it is never negative.
+/// The floor is a truncating cast corrected for negatives (no libm call on
+/// baseline x86-64); coordinates beyond +-2^23 cells saturate.
 #[inline]
 fn cell_coord(v: f32, inv: f32) -> u32 {
-    const OFFSET: f32 = (1u32 << 24) as f32;
-    (f64::from(v * inv) + f64::from(OFFSET)).clamp(0.0, f64::from(u32::MAX >> 1)) as u32
+    const OFFSET: i32 = 1 << 24;
+    let t = (v * inv).clamp(-8_388_608.0, 8_388_608.0);
+    let truncated = t as i32;
+    let floor = truncated - i32::from(t < truncated as f32);
+    (floor + OFFSET) as u32
 }
 
 impl Cells {

@@ -78,6 +78,9 @@ impl TablePlane {
     }
 }
 
+/// Hypotheses drawn at least, whatever the support.
+const MIN_ITERATIONS: usize = 16;
+
 /// Finds the table plane in `points` (world frame).
 pub fn fit_table(points: &[[f32; 3]], config: &TableConfig) -> Result<TablePlane> {
     let mut rng = SplitMix64::new(config.seed ^ points.len() as u64);
@@ -95,7 +98,12 @@ pub fn fit_table(points: &[[f32; 3]], config: &TableConfig) -> Result<TablePlane
     let required = ((sample.len() as f64 * config.min_support_fraction).ceil() as usize).max(3);
     let min_up = config.max_tilt_rad.cos();
     let mut best: Option<(usize, Vector3<f64>, f64)> = None;
-    for _ in 0..config.iterations {
+    // Adaptive stop: once the best support w makes missing a better plane
+    // unlikely (1 - w^3)^k < 1e-4, more hypotheses are wasted.
+    let mut needed = config.iterations;
+    let mut done = 0;
+    while done < needed.min(config.iterations) {
+        done += 1;
         if sample.len() < 3 {
             break;
         }
@@ -118,6 +126,9 @@ pub fn fit_table(points: &[[f32; 3]], config: &TableConfig) -> Result<TablePlane
         };
         if better {
             best = Some((support, normal, offset));
+            let w = support as f64 / sample.len() as f64;
+            let miss = (1.0 - w * w * w).max(1e-12);
+            needed = ((1e-4f64).ln() / miss.ln()).ceil().max(MIN_ITERATIONS as f64) as usize;
         }
     }
     let fail = |best_inliers| Error::NoTablePlane {

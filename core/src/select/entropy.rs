@@ -7,20 +7,21 @@
 //! pixel equal).
 
 /// Entropy in bits of the view image `values` (all >= 0).
+///
+/// Computed as `H = log2(T) - sum(v log2 v) / T` with `T = sum(v)`: one
+/// logarithm per lit pixel, in f32 (sums in f64).
 pub fn view_entropy(values: &[f32]) -> f64 {
-    let total: f64 = values.iter().map(|&v| f64::from(v.max(0.0))).sum();
+    let (mut total, mut weighted) = (0.0f64, 0.0f64);
+    for &v in values {
+        if v > 0.0 {
+            total += f64::from(v);
+            weighted += f64::from(v * v.log2());
+        }
+    }
     if total <= 0.0 {
         return 0.0;
     }
-    let h: f64 = values
-        .iter()
-        .filter(|&&v| v > 0.0)
-        .map(|&v| {
-            let p = f64::from(v) / total;
-            -p * p.log2()
-        })
-        .sum();
-    h.max(0.0)
+    (total.log2() - weighted / total).max(0.0)
 }
 
 #[cfg(test)]
@@ -32,7 +33,7 @@ mod tests {
         assert_eq!(view_entropy(&[0.0; 16]), 0.0);
         let mut one = [0.0f32; 16];
         one[3] = 0.7;
-        assert_eq!(view_entropy(&one), 0.0);
-        assert!((view_entropy(&[0.4; 16]) - 4.0).abs() < 1e-12);
+        assert!(view_entropy(&one).abs() < 1e-6);
+        assert!((view_entropy(&[0.4; 16]) - 4.0).abs() < 1e-6);
     }
 }

@@ -272,6 +272,13 @@ impl Keep {
             & (p[2] <= self.hi[2])
     }
 
+    /// The half-space normal's component along `d`.
+    #[inline(always)]
+    fn height_dir(&self, d: &[f32; 3]) -> f32 {
+        let n = &self.above.normal;
+        n[0] * d[0] + n[1] * d[1] + n[2] * d[2]
+    }
+
     #[inline(always)]
     fn test(&self, p: &[f32; 3]) -> bool {
         let n = &self.above.normal;
@@ -314,88 +321,127 @@ fn depth_to_world(
     sampling: Sampling<'_>,
 ) -> Result<WorldCloud> {
     let (w, h) = check_frame(frame)?;
-    let k = &frame.intrinsics;
-    let r = world_from_camera.rotation.to_rotation_matrix();
-    let r = r.matrix();
-    let t = world_from_camera.translation.vector;
-    let column_term: Vec<[f32; 3]> = (0..w)
-        .map(|u| {
-            let x = (u as f64 - k.cx) / k.fx;
-            [
-                (r[(0, 0)] * x) as f32,
-                (r[(1, 0)] * x) as f32,
-                (r[(2, 0)] * x) as f32,
-            ]
-        })
-        .collect();
-    let origin = [t.x as f32, t.y as f32, t.z as f32];
-    let n = keep.above.normal;
-    let dot = |a: &[f32; 3]| n[0] * a[0] + n[1] * a[1] + n[2] * a[2];
-    let h0 = dot(&origin) + keep.above.offset;
-    let column_height: Vec<f32> = column_term.iter().map(dot).collect();
-    let bpp = frame.encoding.bytes_per_pixel();
-    let read = |row: &[u8], u: usize| -> f32 {
-        match frame.encoding {
-            DepthEncoding::U16Millimetres => {
-                f32::from(u16::from_le_bytes([row[2 * u], row[2 * u + 1]])) * 1e-3
-            }
-            DepthEncoding::F32Metres => {
-                f32::from_le_bytes([row[4 * u], row[4 * u + 1], row[4 * u + 2], row[4 * u + 3]])
-            }
-        }
-    };
+    let rays = Rays::new(frame, world_from_camera, keep);
     let mut out = WorldCloud::default();
-    let row_pixels = |v: usize, columns: &mut dyn Iterator<Item = usize>, out: &mut WorldCloud| {
-        let row = &frame.data[v * w * bpp..(v + 1) * w * bpp];
-        let y = (v as f64 - k.cy) / k.fy;
-        let row_term = [
-            (r[(0, 1)] * y + r[(0, 2)]) as f32,
-            (r[(1, 1)] * y + r[(1, 2)]) as f32,
-            (r[(2, 1)] * y + r[(2, 2)]) as f32,
-        ];
-        let row_height = dot(&row_term);
-        for u in columns {
-            let z = read(row, u);
-            // 0, NaN, +-inf and negative readings are "no reading".
-            if !((z > 0.0) & (z < f32::INFINITY)) {
-                continue;
-            }
-            out.valid += 1;
-            if h0 + z * (column_height[u] + row_height) <= 0.0 {
-                continue;
-            }
-            let c = &column_term[u];
-            let p = [
-                origin[0] + z * (c[0] + row_term[0]),
-                origin[1] + z * (c[1] + row_term[1]),
-                origin[2] + z * (c[2] + row_term[2]),
-            ];
-            if keep.inside(&p) {
-                out.points.push(p);
-                out.pixels.push((v * w + u) as u32);
-            }
-        }
-    };
     match sampling {
         Sampling::Grid(stride) => {
             for v in (0..h).step_by(stride) {
-                row_pixels(v, &mut (0..w).step_by(stride), &mut out);
+                rays.row(frame, keep, v, (0..w).step_by(stride), &mut out);
             }
         }
         Sampling::Blocks(mask) => {
             let s = mask.stride;
             for v in 0..h {
                 let blocks = &mask.marked[(v / s) * mask.blocks_wide..(v / s + 1) * mask.blocks_wide];
-                let mut columns = blocks
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, m)| **m)
-                    .flat_map(|(b, _)| b * s..((b + 1) * s).min(w));
-                row_pixels(v, &mut columns, &mut out);
+                // Runs of marked blocks -> column ranges.
+                let mut b = 0;
+                while b < blocks.len() {
+                    if !blocks[b] {
+                        b += 1;
+                        continue;
+                    }
+                    let start = b;
+                    while b < blocks.len() && blocks[b] {
+                        b += 1;
+                    }
+                    rays.row(frame, keep, v, start * s..(b * s).min(w), &mut out);
+                }
             }
         }
     }
     Ok(out)
+}
+
+/// The per-column and per-row parts of every pixel's world ray and height.
+struct Rays {
+    width: usize,
+    intrinsics: Intrinsics,
+    rotation: nalgebra::Matrix3<f64>,
+    origin: [f32; 3],
+    column_term: Vec<[f32; 3]>,
+    column_height: Vec<f32>,
+    h0: f32,
+}
+
+impl Rays {
+    fn new(frame: &DepthFrame<'_>, world_from_camera: &Isometry3<f64>, keep: &Keep) -> Self {
+        let k = frame.intrinsics;
+        let rotation = *world_from_camera.rotation.to_rotation_matrix().matrix();
+        let r = &rotation;
+        let t = world_from_camera.translation.vector;
+        let column_term: Vec<[f32; 3]> = (0..frame.width as usize)
+            .map(|u| {
+                let x = (u as f64 - k.cx) / k.fx;
+                [
+                    (r[(0, 0)] * x) as f32,
+                    (r[(1, 0)] * x) as f32,
+                    (r[(2, 0)] * x) as f32,
+                ]
+            })
+            .collect();
+        let origin = [t.x as f32, t.y as f32, t.z as f32];
+        let column_height = column_term.iter().map(|c| keep.height_dir(c)).collect();
+        let h0 = keep.height_dir(&origin) + keep.above.offset;
+        Self {
+            width: frame.width as usize,
+            intrinsics: k,
+            rotation,
+            origin,
+            column_term,
+            column_height,
+            h0,
+        }
+    }
+
+    /// Converts the pixels `columns` of row `v`.
+    #[inline]
+    fn row(
+        &self,
+        frame: &DepthFrame<'_>,
+        keep: &Keep,
+        v: usize,
+        columns: impl Iterator<Item = usize>,
+        out: &mut WorldCloud,
+    ) {
+        let bpp = frame.encoding.bytes_per_pixel();
+        let row = &frame.data[v * self.width * bpp..(v + 1) * self.width * bpp];
+        let (k, r) = (&self.intrinsics, &self.rotation);
+        let y = (v as f64 - k.cy) / k.fy;
+        let row_term = [
+            (r[(0, 1)] * y + r[(0, 2)]) as f32,
+            (r[(1, 1)] * y + r[(1, 2)]) as f32,
+            (r[(2, 1)] * y + r[(2, 2)]) as f32,
+        ];
+        let row_height = keep.height_dir(&row_term);
+        for u in columns {
+            let z = match frame.encoding {
+                DepthEncoding::U16Millimetres => {
+                    f32::from(u16::from_le_bytes([row[2 * u], row[2 * u + 1]])) * 1e-3
+                }
+                DepthEncoding::F32Metres => {
+                    f32::from_le_bytes([row[4 * u], row[4 * u + 1], row[4 * u + 2], row[4 * u + 3]])
+                }
+            };
+            // 0, NaN, +-inf and negative readings are "no reading".
+            if !((z > 0.0) & (z < f32::INFINITY)) {
+                continue;
+            }
+            out.valid += 1;
+            if self.h0 + z * (self.column_height[u] + row_height) <= 0.0 {
+                continue;
+            }
+            let c = &self.column_term[u];
+            let p = [
+                self.origin[0] + z * (c[0] + row_term[0]),
+                self.origin[1] + z * (c[1] + row_term[1]),
+                self.origin[2] + z * (c[2] + row_term[2]),
+            ];
+            if keep.inside(&p) {
+                out.points.push(p);
+                out.pixels.push((v * self.width + u) as u32);
+            }
+        }
+    }
 }
 
 /// Largest cloud accepted (points); guards allocations on bad input.

@@ -99,15 +99,21 @@ impl OrthoView {
         pixel_size_m: f32,
     ) -> Self {
         let object_from_view = axis.object_from_view(camera_on_plus_y);
-        let view_from_object = object_from_view.transpose().cast::<f32>();
+        // Every view axis is +- one object axis: a signed permutation, no matrix product.
+        let axis_of = |column: usize| {
+            let c = object_from_view.column(column);
+            let j = c.iamax();
+            (j, c[j].signum() as f32)
+        };
+        let [(ju, su), (jv, sv), (jd, sd)] = [axis_of(0), axis_of(1), axis_of(2)];
         let l = size_px;
         let inv = 1.0 / pixel_size_m;
         let half = l as f32 * 0.5;
+        let (su, sv) = (su * inv, sv * inv);
         let mut depth = vec![f32::INFINITY; l * l];
         let mut filled_box = PixelBox::EMPTY;
         for p in points_in_object {
-            let q = view_from_object * Vector3::new(p[0], p[1], p[2]);
-            let (u, v) = (q.x * inv + half, q.y * inv + half);
+            let (u, v) = (su * p[ju] + half, sv * p[jv] + half);
             // Negative coordinates are outside; for the rest the cast is the floor.
             if !(u >= 0.0 && v >= 0.0) {
                 continue;
@@ -117,9 +123,10 @@ impl OrthoView {
                 continue;
             }
             filled_box.include(u, v);
+            let z = sd * p[jd];
             let cell = &mut depth[v * l + u];
-            if q.z < *cell {
-                *cell = q.z;
+            if z < *cell {
+                *cell = z;
             }
         }
         let depth = fill_holes(&depth, l, &filled_box);
