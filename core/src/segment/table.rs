@@ -4,6 +4,9 @@
 //! Hypotheses are planes through three sampled points whose normal lies
 //! within `max_tilt_rad` of world up; the one with most support wins and is
 //! refined by least squares on its inliers. The table height is never assumed.
+//! A plane with more than `max_below_fraction` of the points over 2 cm under
+//! it is rejected: the table holds things up, so a box top (or several at one
+//! height) seen without the table around it is not taken for it.
 //! When no hypothesis reaches `min_support_fraction` of the sample the stage
 //! fails with [`Error::NoTablePlane`] rather than guessing a plane: a planner
 //! that invents a table would send fingers into it.
@@ -29,6 +32,11 @@ pub struct TableConfig {
     pub min_support_fraction: f64,
     /// Points less than this above the plane count as table (m).
     pub object_min_height_m: f64,
+    /// A plane with more than this share of the sample further than
+    /// `below_margin_m` under it is not the table.
+    pub max_below_fraction: f64,
+    /// See `max_below_fraction` (m).
+    pub below_margin_m: f64,
     /// Seed of the sampling stream.
     pub seed: u64,
     /// The plane is fitted on every `fit_stride`-th row and column of a depth
@@ -39,12 +47,14 @@ pub struct TableConfig {
 impl Default for TableConfig {
     fn default() -> Self {
         Self {
-            max_tilt_rad: 15f64.to_radians(),
+            max_tilt_rad: 10f64.to_radians(),
             inlier_distance_m: 0.006,
             iterations: 96,
             sample_points: 2048,
             min_support_fraction: 0.08,
             object_min_height_m: 0.008,
+            max_below_fraction: 0.05,
+            below_margin_m: 0.02,
             seed: 0x7AB1E,
             fit_stride: 4,
         }
@@ -118,7 +128,12 @@ pub fn fit_table(points: &[[f32; 3]], config: &TableConfig) -> Result<TablePlane
             continue;
         }
         let offset = -normal.dot(&a);
-        let support = count_within(&sample, &normal, offset, config.inlier_distance_m);
+        let (support, below) = score(&sample, &normal, offset, config);
+        // A table holds the objects up: a plane with much of the scene under
+        // it is a box top (or the wall of a bin), not the table.
+        if below as f64 > config.max_below_fraction * sample.len() as f64 {
+            continue;
+        }
         // Most support wins; on a tie the lower plane (the table under a box top).
         let better = match best {
             None => true,
@@ -145,7 +160,7 @@ pub fn fit_table(points: &[[f32; 3]], config: &TableConfig) -> Result<TablePlane
     }
     let (normal, offset) =
         refine(&sample, &normal, offset, config.inlier_distance_m, min_up).unwrap_or((normal, offset));
-    let support = count_within(&sample, &normal, offset, config.inlier_distance_m);
+    let (support, _) = score(&sample, &normal, offset, config);
     Ok(TablePlane {
         normal,
         offset_m: offset,
@@ -153,11 +168,21 @@ pub fn fit_table(points: &[[f32; 3]], config: &TableConfig) -> Result<TablePlane
     })
 }
 
-fn count_within(sample: &[Vector3<f64>], normal: &Vector3<f64>, offset: f64, distance: f64) -> usize {
-    sample
-        .iter()
-        .filter(|p| (normal.dot(p) + offset).abs() <= distance)
-        .count()
+/// Points within the inlier distance of the plane, and points more than
+/// `below_margin_m` under it.
+fn score(
+    sample: &[Vector3<f64>],
+    normal: &Vector3<f64>,
+    offset: f64,
+    config: &TableConfig,
+) -> (usize, usize) {
+    let (mut within, mut below) = (0, 0);
+    for p in sample {
+        let h = normal.dot(p) + offset;
+        within += usize::from(h.abs() <= config.inlier_distance_m);
+        below += usize::from(h < -config.below_margin_m);
+    }
+    (within, below)
 }
 
 /// Least-squares plane through the inliers of a hypothesis; `None` when the

@@ -3,6 +3,7 @@
 #![allow(clippy::expect_used)] // fixtures stop the test on bad set-up
 
 mod decoding;
+mod inputs;
 mod properties;
 mod scene;
 mod scenes;

@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# The project's test command (README.md): installs what it needs, then runs
+# the same checks CI runs. Safe to run on a fresh machine with Rust.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+if ! cargo nextest --version >/dev/null 2>&1; then
+    echo "== installing cargo-nextest"
+    cargo install cargo-nextest --locked
+fi
+for component in rustfmt clippy; do
+    if ! rustup component list --installed 2>/dev/null | grep -q "^$component"; then
+        rustup component add "$component" || true
+    fi
+done
+
+echo "== cargo fmt --check"
+cargo fmt --all -- --check
+echo "== cargo clippy"
+cargo clippy --workspace --all-targets -- -D warnings
+echo "== cargo doc"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
+echo "== doc tests"
+cargo test --workspace --doc --quiet
+echo "== cargo nextest"
+cargo nextest run --workspace --no-fail-fast
