@@ -264,7 +264,7 @@ fn tolerates_moderate_sensor_noise() {
         .iter()
         .flat_map(|&mm| {
             let r = rng.next_u64();
-            let value = if mm == 0 || r % 50 == 0 {
+            let value = if mm == 0 || r.is_multiple_of(50) {
                 0
             } else {
                 // Sum of two uniforms in [-1.5, 1.5] mm: triangular noise.
