@@ -156,7 +156,7 @@ fn stages(c: &mut Criterion) {
     });
     let map: Vec<f32> = (0..96 * 96).map(|i| (i % 97) as f32 / 97.0).collect();
     group.bench_function("smooth_one_96px_map", |b| {
-        b.iter(|| mvgrasp_core::decode::smooth(black_box(&map), 96, 1.0))
+        b.iter(|| mvgrasp_core::decode::smooth(black_box(&map), 96, 96, 1.0))
     });
     group.bench_function("baseline_net_6_views", |b| {
         b.iter(|| net.infer(black_box(prepared.batch())))

@@ -14,7 +14,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
-use super::peaks::{find_peaks, smooth};
+use super::peaks::smoothed_peaks;
 use crate::gripper::Gripper;
 use crate::infer::{Channel, GraspMaps, ModelContract};
 use crate::segment::TablePlane;
@@ -95,7 +95,6 @@ pub fn decode_view(
     let view = placement.view;
     let l = view.size_px;
     let channel = |c: Channel| maps.channel(index, contract.channel_index(c));
-    let quality = smooth(channel(Channel::Quality), l, config.smoothing_sigma_px);
     let (cos2, sin2, width) = (
         channel(Channel::Cos2Phi),
         channel(Channel::Sin2Phi),
@@ -106,13 +105,15 @@ pub fn decode_view(
     let approach = world_from_view.column(2).into_owned();
 
     let mut grasps = Vec::new();
-    for (u, v, q) in find_peaks(
-        &quality,
+    let peaks = smoothed_peaks(
+        channel(Channel::Quality),
         l,
+        config.smoothing_sigma_px,
         min_quality,
         config.nms_radius_px,
         config.peaks_per_view,
-    ) {
+    );
+    for (u, v, q) in peaks {
         let i = v * l + u;
         let (c, s) = (cos2[i], sin2[i]);
         let width_m = f64::from(width[i]) * f64::from(contract.width_scale_m);

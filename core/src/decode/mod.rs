@@ -5,5 +5,5 @@ mod peaks;
 mod rank;
 
 pub use grasp::{DecodeConfig, Grasp, ViewPlacement, decode_view};
-pub use peaks::{NEGLIGIBLE_QUALITY, find_peaks, smooth};
+pub use peaks::{NEGLIGIBLE_QUALITY, find_peaks, smooth, smoothed_peaks};
 pub use rank::{RankConfig, rank_grasps};

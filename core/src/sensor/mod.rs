@@ -81,7 +81,8 @@ pub struct WorldCloud {
     pub points: Vec<[f32; 3]>,
     /// Readings that were valid before the crop.
     pub valid: usize,
-    /// For a depth image: the pixel (`v * width + u`) of each point.
+    /// For a sparse sample of a depth image: the pixel (`v * width + u`) of
+    /// each point (empty otherwise).
     pub pixels: Vec<u32>,
 }
 
@@ -325,8 +326,11 @@ fn depth_to_world(
     let mut out = WorldCloud::default();
     match sampling {
         Sampling::Grid(stride) => {
+            let samples = w.div_ceil(stride) * h.div_ceil(stride);
+            out.points.reserve(samples);
+            out.pixels.reserve(samples);
             for v in (0..h).step_by(stride) {
-                rays.row(frame, keep, v, (0..w).step_by(stride), &mut out);
+                rays.row(frame, keep, v, (0..w).step_by(stride), true, &mut out);
             }
         }
         Sampling::Blocks(mask) => {
@@ -344,7 +348,7 @@ fn depth_to_world(
                     while b < blocks.len() && blocks[b] {
                         b += 1;
                     }
-                    rays.row(frame, keep, v, start * s..(b * s).min(w), &mut out);
+                    rays.row(frame, keep, v, start * s..(b * s).min(w), false, &mut out);
                 }
             }
         }
@@ -401,6 +405,7 @@ impl Rays {
         keep: &Keep,
         v: usize,
         columns: impl Iterator<Item = usize>,
+        record_pixels: bool,
         out: &mut WorldCloud,
     ) {
         let bpp = frame.encoding.bytes_per_pixel();
@@ -438,7 +443,9 @@ impl Rays {
             ];
             if keep.inside(&p) {
                 out.points.push(p);
-                out.pixels.push((v * self.width + u) as u32);
+                if record_pixels {
+                    out.pixels.push((v * self.width + u) as u32);
+                }
             }
         }
     }

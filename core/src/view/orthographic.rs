@@ -112,16 +112,15 @@ impl OrthoView {
         let (su, sv) = (su * inv, sv * inv);
         let mut depth = vec![f32::INFINITY; l * l];
         let mut filled_box = PixelBox::EMPTY;
+        let side = l as f32;
         for p in points_in_object {
             let (u, v) = (su * p[ju] + half, sv * p[jv] + half);
-            // Negative coordinates are outside; for the rest the cast is the floor.
-            if !(u >= 0.0 && v >= 0.0) {
+            // Bounds checked in floats, so the cast (the floor, for values
+            // in [0, l)) needs no saturation handling.
+            if !((u >= 0.0) & (v >= 0.0) & (u < side) & (v < side)) {
                 continue;
             }
-            let (u, v) = (u as usize, v as usize);
-            if u >= l || v >= l {
-                continue;
-            }
+            let (u, v) = (u as i32 as usize, v as i32 as usize);
             filled_box.include(u, v);
             let z = sd * p[jd];
             let cell = &mut depth[v * l + u];
