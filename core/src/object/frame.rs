@@ -7,13 +7,11 @@
 //! saw; with the camera straight above the object (< 1 cm off horizontally)
 //! X is signed to point along world +x instead (then +y).
 //!
-//! The moments are summed as integers (1 um units, i128), so the frame is
+//! The moments are summed as integers (1 um units, truncated), so the frame is
 //! bit-identical whatever order the points come in: a shuffled cloud gives
 //! the same frame, even for objects whose cross-section is round.
 
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
-
-use crate::geometry::round_to_i64;
 
 /// An object's frame and the box its points fill in that frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -38,19 +36,23 @@ pub fn object_frame(
     camera_in_world: &Point3<f64>,
 ) -> (ObjectFrame, Vec<[f32; 3]>) {
     let n = indices.len().max(1) as i128;
-    let (mut sx, mut sy, mut sz, mut sxx, mut syy, mut sxy) = (0i128, 0i128, 0i128, 0i128, 0i128, 0i128);
+    let (mut sx, mut sy, mut sz) = (0i64, 0i64, 0i64);
+    let (mut sxx, mut syy, mut sxy) = (0i128, 0i128, 0i128);
     for &i in indices {
         let p = points[i as usize];
-        let q = |v: f32| round_to_i64(f64::from(v) * MICRONS);
+        // Micrometres, truncated: f32 holds whole micrometres up to 16 m,
+        // and the cast saturates beyond +-2 km (far outside any workspace).
+        let q = |v: f32| i64::from((v * MICRONS as f32) as i32);
         let (x, y, z) = (q(p[0]), q(p[1]), q(p[2]));
-        // Products fit i64 for coordinates under 3 km; the sums need i128.
-        sx += i128::from(x);
-        sy += i128::from(y);
-        sz += i128::from(z);
+        // Linear sums fit i64 for any cluster size; squares need i128 sums.
+        sx += x;
+        sy += y;
+        sz += z;
         sxx += i128::from(x * x);
         syy += i128::from(y * y);
         sxy += i128::from(x * y);
     }
+    let (sx, sy, sz) = (i128::from(sx), i128::from(sy), i128::from(sz));
     let centroid = Vector3::new(sx as f64, sy as f64, sz as f64) / (n as f64 * MICRONS);
     // n^2 * covariance, exact.
     let cxx = (n * sxx - sx * sx) as f64;
