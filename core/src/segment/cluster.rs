@@ -92,15 +92,9 @@ fn connected_components(points: &[[f32; 3]], tolerance_m: f32) -> Vec<u32> {
     let edge = tolerance_m / 3f32.sqrt() * 0.999;
     let cells = Cells::new(points, edge);
 
-    let mut sets = UnionFind::new(cells.len());
-    let consider = |a: usize, b: usize, sets: &mut UnionFind| {
-        if sets.find(a) != sets.find(b)
-            && cells.may_touch(a, b, radius_sq)
-            && cells.any_pair_within(points, a, b, radius_sq)
-        {
-            sets.union(a, b);
-        }
-    };
+    // Pairs of occupied cells close enough to hold a pair of points within
+    // the tolerance, each pair once.
+    let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(cells.len() * 16);
     match &cells.index {
         CellIndex::Dense { cell, dims, .. } => {
             // The grid is padded by 2 cells on every side, so a neighbour's
@@ -109,29 +103,37 @@ fn connected_components(points: &[[f32; 3]], tolerance_m: f32) -> Vec<u32> {
             let stride_z = (dims[0] * dims[1]) as isize;
             let deltas = FORWARD_OFFSETS
                 .map(|[dx, dy, dz]| dx as isize + dy as isize * stride_y + dz as isize * stride_z);
-            for a in 0..cells.len() {
-                let slot = cells.slot[a] as isize;
+            for (a, &slot) in cells.slot.iter().enumerate() {
                 for &delta in &deltas {
-                    let b = cell[(slot + delta) as usize];
+                    let b = cell[(slot as isize + delta) as usize];
                     if b != u32::MAX {
-                        consider(a, b as usize, &mut sets);
+                        pairs.push((a as u32, b));
                     }
                 }
             }
         }
         CellIndex::Sparse(map) => {
-            for a in 0..cells.len() {
-                let [x, y, z] = cells.coords[a];
+            for (a, &[x, y, z]) in cells.coords.iter().enumerate() {
                 for &[dx, dy, dz] in FORWARD_OFFSETS.iter() {
                     let c = [x as i64 + dx, y as i64 + dy, z as i64 + dz];
                     if c.iter().any(|&v| v < 0 || v > i64::from(u32::MAX)) {
                         continue;
                     }
                     if let Some(&b) = map.get(&c.map(|v| v as u32)) {
-                        consider(a, b as usize, &mut sets);
+                        pairs.push((a as u32, b));
                     }
                 }
             }
+        }
+    }
+    let mut sets = UnionFind::new(cells.len());
+    for (a, b) in pairs {
+        let (a, b) = (a as usize, b as usize);
+        if sets.find(a) != sets.find(b)
+            && cells.may_touch(a, b, radius_sq)
+            && cells.any_pair_within(points, a, b, radius_sq)
+        {
+            sets.union(a, b);
         }
     }
     // Dense component ids, in order of first appearance.
@@ -226,15 +228,18 @@ fn cell_coord(v: f32, inv: f32) -> u32 {
 impl Cells {
     fn new(points: &[[f32; 3]], edge: f32) -> Self {
         let inv = 1.0 / edge;
-        let point_coords: Vec<[u32; 3]> = points.iter().map(|p| p.map(|v| cell_coord(v, inv))).collect();
-        let mut lo = [u32::MAX; 3];
-        let mut hi = [0u32; 3];
-        for c in &point_coords {
+        // The box of the points in metres (a cheap pass), then in cells:
+        // cell_coord is monotonic, so the cells of the extremes bound all cells.
+        let mut lo_m = [f32::INFINITY; 3];
+        let mut hi_m = [f32::NEG_INFINITY; 3];
+        for p in points {
             for a in 0..3 {
-                lo[a] = lo[a].min(c[a]);
-                hi[a] = hi[a].max(c[a]);
+                lo_m[a] = lo_m[a].min(p[a]);
+                hi_m[a] = hi_m[a].max(p[a]);
             }
         }
+        let lo = lo_m.map(|v| cell_coord(v, inv));
+        let hi = hi_m.map(|v| cell_coord(v, inv));
         let dims = [0, 1, 2].map(|a| (hi[a] - lo[a] + 2 * PAD) as usize + 1);
         let dense = dims
             .iter()
@@ -252,10 +257,11 @@ impl Cells {
         let mut coords = Vec::new();
         let mut slot = Vec::new();
         let mut cell_of_point = Vec::with_capacity(points.len());
-        for c in &point_coords {
-            let (id, s) = index.get_or_insert(*c, coords.len() as u32);
+        for p in points {
+            let c = p.map(|v| cell_coord(v, inv));
+            let (id, s) = index.get_or_insert(c, coords.len() as u32);
             if id as usize == coords.len() {
-                coords.push(*c);
+                coords.push(c);
                 slot.push(s);
             }
             cell_of_point.push(id);
