@@ -24,8 +24,6 @@
 
 use rustc_hash::FxHashMap;
 
-use crate::geometry::round_to_i64;
-
 /// Settings of the clustering stage.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ClusterConfig {
@@ -257,14 +255,19 @@ impl Cells {
         let mut coords = Vec::new();
         let mut slot = Vec::new();
         let mut cell_of_point = Vec::with_capacity(points.len());
+        // Consecutive points (neighbouring pixels) mostly share a cell.
+        let mut last = ([u32::MAX; 3], 0u32);
         for p in points {
             let c = p.map(|v| cell_coord(v, inv));
-            let (id, s) = index.get_or_insert(c, coords.len() as u32);
-            if id as usize == coords.len() {
-                coords.push(c);
-                slot.push(s);
+            if c != last.0 {
+                let (id, s) = index.get_or_insert(c, coords.len() as u32);
+                if id as usize == coords.len() {
+                    coords.push(c);
+                    slot.push(s);
+                }
+                last = (c, id);
             }
-            cell_of_point.push(id);
+            cell_of_point.push(last.1);
         }
         let n = coords.len();
         let mut start = vec![0u32; n + 1];
@@ -388,8 +391,9 @@ fn centroid_key(points: &[[f32; 3]], cluster: &[u32]) -> [i64; 3] {
     for &i in cluster {
         let p = points[i as usize];
         for a in 0..3 {
-            // Summing integers (10 um units) makes the key order-independent.
-            sum[a] += round_to_i64(f64::from(p[a]) * 1e5);
+            // Summing integers (10 um units, truncated) makes the key
+            // order-independent; the cast saturates beyond +-21 km.
+            sum[a] += i64::from((p[a] * 1e5) as i32);
         }
     }
     let n = cluster.len().max(1) as i64;
