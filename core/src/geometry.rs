@@ -86,13 +86,6 @@ impl Workspace {
     }
 }
 
-/// Rounds half away from zero with a cast (no libm call on baseline x86-64);
-/// saturates outside the i64 range.
-#[inline]
-pub(crate) fn round_to_i64(x: f64) -> i64 {
-    (x + 0.5f64.copysign(x)) as i64
-}
-
 /// World "up" (gravity is -z).
 pub fn world_up() -> Vector3<f64> {
     Vector3::z()
