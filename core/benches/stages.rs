@@ -14,7 +14,7 @@ use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use mvgrasp_core::object::object_frame;
 use mvgrasp_core::segment::{euclidean_clusters, fit_table};
 use mvgrasp_core::select::view_entropy;
-use mvgrasp_core::sensor::{BlockMask, sample_world_points, world_points_above};
+use mvgrasp_core::sensor::{BlockMask, random_world_points, world_points_above};
 use mvgrasp_core::{
     DepthEncoding, DepthFrame, GraspNet, MomentsNet, OrthoView, PlanOptions, Planner, PlannerConfig,
     SceneInput, SensorInput, ViewAxis, Workspace,
@@ -48,13 +48,15 @@ fn stages(c: &mut Criterion) {
 
     // Intermediate results, so each stage is timed on its own input.
     let (sensor, pose, workspace) = (&input.sensor, &input.world_from_camera, &input.workspace);
-    let sparse = sample_world_points(sensor, pose, workspace, config.table.fit_stride).expect("cloud");
+    let (samples, seed) = (config.table.sample_points, config.table.seed);
+    let sparse = random_world_points(sensor, pose, workspace, samples, seed).expect("cloud");
     let table = fit_table(&sparse.points, &config.table).expect("table");
     let half_space = table.above(config.table.object_min_height_m);
     let SensorInput::Depth(frame) = sensor else {
         unreachable!("a depth frame")
     };
-    let near = BlockMask::from_sample(frame, &sparse, config.table.fit_stride, &half_space);
+    let stride = config.table.mask_stride;
+    let near = BlockMask::from_frame(frame, pose, workspace, &half_space, stride).expect("mask");
     let above = world_points_above(sensor, pose, workspace, &half_space, Some(&near)).expect("objects");
     let full = world_points_above(sensor, pose, workspace, &half_space, None).expect("objects");
     assert_eq!(
@@ -78,7 +80,7 @@ fn stages(c: &mut Criterion) {
     let prepared = planner.prepare(&input, &options).expect("prepare");
     let maps = net.infer(prepared.batch()).expect("maps");
     eprintln!(
-        "bench frame: {} sparse points, {} object points, {} objects, {} views inferred",
+        "bench frame: {} random points for the table, {} object points, {} objects, {} views inferred",
         sparse.points.len(),
         above.len(),
         clusters.len(),
@@ -86,15 +88,15 @@ fn stages(c: &mut Criterion) {
     );
 
     let mut group = c.benchmark_group("640x480_6_objects");
-    group.bench_function("1_sensor_sparse_for_table", |b| {
-        b.iter(|| sample_world_points(black_box(sensor), pose, workspace, config.table.fit_stride))
+    group.bench_function("1_sensor_random_points_for_table", |b| {
+        b.iter(|| random_world_points(black_box(sensor), pose, workspace, samples, seed))
     });
     group.bench_function("2_table_ransac", |b| {
         b.iter(|| fit_table(black_box(&sparse.points), &config.table))
     });
     group.bench_function("3_sensor_objects_above_table", |b| {
         b.iter(|| {
-            let near = BlockMask::from_sample(frame, &sparse, config.table.fit_stride, &half_space);
+            let near = BlockMask::from_frame(frame, pose, workspace, &half_space, stride).expect("mask");
             world_points_above(black_box(sensor), pose, workspace, &half_space, Some(&near))
         })
     });

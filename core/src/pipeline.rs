@@ -13,8 +13,8 @@ use crate::gripper::Gripper;
 use crate::infer::{GraspMaps, GraspNet, ModelContract, NORMALISATION_CUBE_V1, ViewBatch};
 use crate::object::{ObjectFrame, object_frame};
 use crate::segment::{ClusterConfig, TableConfig, TablePlane, euclidean_clusters, fit_table};
-use crate::select::{ViewPolicy, select_views, view_entropy};
-use crate::sensor::{BlockMask, SensorInput, sample_world_points, world_points, world_points_above};
+use crate::select::{ViewPolicy, select_views};
+use crate::sensor::{BlockMask, SensorInput, random_world_points, world_points, world_points_above};
 use crate::view::{OrthoView, ViewAxis};
 
 /// One sensor frame and where it was taken from.
@@ -99,17 +99,17 @@ impl Default for PlannerConfig {
     }
 }
 
-/// Below this many sparse points the table is fitted on the full cloud.
-const MIN_POINTS_TO_FIT_SPARSE: usize = 1000;
+/// Below this many usable random readings the table is fitted on all of them.
+const MIN_RANDOM_POINTS_TO_FIT: usize = 256;
 
 /// Wall time of each stage.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StageTimings {
-    /// Frame -> sparse world points, cropped (for the table fit).
+    /// Frame -> random world points in the workspace (for the table fit).
     pub sensor: Duration,
     /// Table plane fit.
     pub table: Duration,
-    /// Frame -> world points above the table, full resolution.
+    /// Block mask, then world points above the table at full resolution.
     pub sensor_objects: Duration,
     /// Euclidean clustering.
     pub cluster: Duration,
@@ -263,23 +263,35 @@ impl Planner {
             clock = now;
         };
 
-        // The table is fitted on a sparse grid, then one full-resolution pass
-        // keeps only what stands on it: the table's points are never stored.
+        // The table is fitted on random readings; a grid pass then marks the
+        // blocks near what stands on it, and one full-resolution pass over
+        // those blocks keeps the object points: the table is never converted.
         let (sensor, pose, workspace) = (&scene.sensor, &scene.world_from_camera, &scene.workspace);
-        let mut sparse_stride = self.config.table.fit_stride.max(1);
-        let mut sparse = sample_world_points(sensor, pose, workspace, sparse_stride)?;
-        if sparse.points.len() < MIN_POINTS_TO_FIT_SPARSE {
-            sparse = world_points(sensor, pose, workspace)?;
-            sparse_stride = 1;
+        let table_config = &self.config.table;
+        let mut sample = random_world_points(
+            sensor,
+            pose,
+            workspace,
+            table_config.sample_points,
+            table_config.seed,
+        )?;
+        if sample.points.len() < MIN_RANDOM_POINTS_TO_FIT {
+            // Few usable readings: look at all of them (this also names the
+            // cause when there is none).
+            sample = world_points(sensor, pose, workspace)?;
         }
         lap(&mut timings.sensor);
-        let table = fit_table(&sparse.points, &self.config.table)?;
+        let table = fit_table(&sample.points, table_config)?;
         lap(&mut timings.table);
-        let half_space = table.above(self.config.table.object_min_height_m);
+        let half_space = table.above(table_config.object_min_height_m);
         let near = match sensor {
-            SensorInput::Depth(frame) if sparse_stride > 1 => {
-                Some(BlockMask::from_sample(frame, &sparse, sparse_stride, &half_space))
-            }
+            SensorInput::Depth(frame) if table_config.mask_stride > 1 => Some(BlockMask::from_frame(
+                frame,
+                pose,
+                workspace,
+                &half_space,
+                table_config.mask_stride,
+            )?),
             _ => None,
         };
         let above = world_points_above(sensor, pose, workspace, &half_space, near.as_ref())?;
@@ -315,7 +327,7 @@ impl Planner {
         let mut objects = Vec::with_capacity(rendered.len());
         for (index, ((frame, _), views)) in framed.into_iter().zip(rendered).enumerate() {
             let id = index as u32;
-            let entropies: Vec<f64> = views.iter().map(|v| view_entropy(&v.image)).collect();
+            let entropies: Vec<f64> = views.iter().map(|v| v.entropy).collect();
             let chosen = select_views(options.view_policy, &self.config.views, &entropies, id);
             for &v in &chosen {
                 batch.push(&views[v].image);

@@ -39,9 +39,9 @@ pub struct TableConfig {
     pub below_margin_m: f64,
     /// Seed of the sampling stream.
     pub seed: u64,
-    /// The plane is fitted on every `fit_stride`-th row and column of a depth
-    /// image (every `fit_stride^2`-th point of a cloud).
-    pub fit_stride: usize,
+    /// After the fit, only the `mask_stride` x `mask_stride` pixel blocks of
+    /// a depth image near points above the plane are converted (1 = all).
+    pub mask_stride: usize,
 }
 
 impl Default for TableConfig {
@@ -56,7 +56,7 @@ impl Default for TableConfig {
             max_below_fraction: 0.05,
             below_margin_m: 0.02,
             seed: 0x7AB1E,
-            fit_stride: 4,
+            mask_stride: 4,
         }
     }
 }

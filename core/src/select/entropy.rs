@@ -11,17 +11,38 @@
 /// Computed as `H = log2(T) - sum(v log2 v) / T` with `T = sum(v)`: one
 /// logarithm per lit pixel, in f32 (sums in f64).
 pub fn view_entropy(values: &[f32]) -> f64 {
-    let (mut total, mut weighted) = (0.0f64, 0.0f64);
+    let mut sums = EntropySums::default();
     for &v in values {
+        sums.add(v);
+    }
+    sums.bits()
+}
+
+/// The running sums behind [`view_entropy`], fed one pixel at a time (the
+/// view renderer accumulates them while it writes the image).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EntropySums {
+    total: f64,
+    weighted: f64,
+}
+
+impl EntropySums {
+    /// Adds one pixel value (values <= 0 add nothing).
+    #[inline]
+    pub fn add(&mut self, v: f32) {
         if v > 0.0 {
-            total += f64::from(v);
-            weighted += f64::from(v * v.log2());
+            self.total += f64::from(v);
+            self.weighted += f64::from(v * v.log2());
         }
     }
-    if total <= 0.0 {
-        return 0.0;
+
+    /// The entropy in bits of the values added so far.
+    pub fn bits(&self) -> f64 {
+        if self.total <= 0.0 {
+            return 0.0;
+        }
+        (self.total.log2() - self.weighted / self.total).max(0.0)
     }
-    (total.log2() - weighted / total).max(0.0)
 }
 
 #[cfg(test)]

@@ -81,7 +81,7 @@ pub struct WorldCloud {
     pub points: Vec<[f32; 3]>,
     /// Readings that were valid before the crop.
     pub valid: usize,
-    /// For a sparse sample of a depth image: the pixel (`v * width + u`) of
+    /// For a grid sample of a depth image: the pixel (`v * width + u`) of
     /// each point (empty otherwise).
     pub pixels: Vec<u32>,
 }
@@ -130,22 +130,68 @@ pub fn world_points(
     Ok(cloud)
 }
 
-/// Like [`world_points`], on a sparse grid: every `stride`-th row and column of
-/// a depth image, every `stride * stride`-th point of a cloud. Enough to fit
-/// the table at a sixteenth of the cost; it reports no error for an empty
-/// result (the caller falls back to [`world_points`], which names the cause).
-pub fn sample_world_points(
+/// Up to `n` readings drawn at random (uniformly over the pixels or points,
+/// with replacement, from a stream seeded with `seed`), as world points
+/// inside `workspace`: enough to fit the table without converting the frame.
+/// At most `4 n` draws are made; an empty or short result is not an error
+/// here (the caller falls back to [`world_points`], which names the cause).
+pub fn random_world_points(
     input: &SensorInput<'_>,
     world_from_camera: &Isometry3<f64>,
     workspace: &Workspace,
-    stride: usize,
+    n: usize,
+    seed: u64,
 ) -> Result<WorldCloud> {
-    convert(
-        input,
-        world_from_camera,
-        &Keep::new(workspace, None),
-        Sampling::Grid(stride.max(1)),
-    )
+    let keep = Keep::new(workspace, None);
+    let mut rng = crate::rng::SplitMix64::new(seed);
+    let mut out = WorldCloud {
+        points: Vec::with_capacity(n),
+        ..WorldCloud::default()
+    };
+    match input {
+        SensorInput::Depth(frame) => {
+            let (w, h) = check_frame(frame)?;
+            let rays = Rays::new(frame, world_from_camera, &keep);
+            for _ in 0..4 * n {
+                if out.points.len() >= n {
+                    break;
+                }
+                let pixel = rng.below(w * h);
+                rays.row(
+                    frame,
+                    &keep,
+                    pixel / w,
+                    std::iter::once(pixel % w),
+                    false,
+                    &mut out,
+                );
+            }
+        }
+        SensorInput::Cloud(cloud) => {
+            let count = check_cloud(cloud)?;
+            let transform = match cloud.frame {
+                CloudFrame::Camera => world_from_camera.cast::<f32>(),
+                CloudFrame::World => Isometry3::identity(),
+            };
+            for _ in 0..4 * n {
+                if out.points.len() >= n || count == 0 {
+                    break;
+                }
+                let b = &cloud.xyz[12 * rng.below(count)..][..12];
+                let f = |i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+                let p = [f(0), f(4), f(8)];
+                if p.iter().all(|c| c.is_finite()) {
+                    out.valid += 1;
+                    let q = transform * Point3::from(p);
+                    let q = [q.x, q.y, q.z];
+                    if keep.inside(&q) {
+                        out.points.push(q);
+                    }
+                }
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// Every point inside `workspace` and `above` at full resolution: the object
@@ -167,7 +213,7 @@ pub fn world_points_above(
 }
 
 /// Blocks of `stride x stride` pixels of a depth image that are worth a
-/// full-resolution look: those whose sparse sample stood above the table,
+/// full-resolution look: those whose corner pixel stands above the table,
 /// and their 8 neighbours (so object edges between samples are not lost).
 /// An object narrower than a block and missed by every sample is missed,
 /// which at stride 4 means under ~4 px: far below the smallest cluster.
@@ -179,19 +225,25 @@ pub struct BlockMask {
 }
 
 impl BlockMask {
-    /// The mask from a sparse sample taken with `stride` of `frame`: marks
-    /// the blocks of the sampled points inside `above`, dilated by one block.
-    pub fn from_sample(frame: &DepthFrame<'_>, sample: &WorldCloud, stride: usize, above: &Above) -> Self {
+    /// The mask of `frame`: its pixels on a grid of `stride` that lie in
+    /// `workspace` and `above` mark their blocks, dilated by one block. The
+    /// grid pass rejects table pixels with one multiply-add each.
+    pub fn from_frame(
+        frame: &DepthFrame<'_>,
+        world_from_camera: &Isometry3<f64>,
+        workspace: &Workspace,
+        above: &Above,
+        stride: usize,
+    ) -> Result<Self> {
         let stride = stride.max(1);
+        let keep = Keep::new(workspace, Some(above));
+        let sample = depth_to_world(frame, world_from_camera, &keep, Sampling::Grid(stride))?;
         let (w, h) = (frame.width as usize, frame.height as usize);
         let (bw, bh) = (w.div_ceil(stride), h.div_ceil(stride));
         let mut hit = vec![false; bw * bh];
-        let n = above.normal;
-        for (p, &pixel) in sample.points.iter().zip(&sample.pixels) {
-            if n[0] * p[0] + n[1] * p[1] + n[2] * p[2] + above.offset > 0.0 {
-                let (u, v) = (pixel as usize % w, pixel as usize / w);
-                hit[(v / stride) * bw + u / stride] = true;
-            }
+        for &pixel in &sample.pixels {
+            let (u, v) = (pixel as usize % w, pixel as usize / w);
+            hit[(v / stride) * bw + u / stride] = true;
         }
         let mut marked = vec![false; bw * bh];
         for by in 0..bh {
@@ -205,11 +257,11 @@ impl BlockMask {
                 }
             }
         }
-        Self {
+        Ok(Self {
             stride,
             blocks_wide: bw,
             marked,
-        }
+        })
     }
 
     /// Share of the image the mask keeps.
@@ -335,6 +387,8 @@ fn depth_to_world(
         }
         Sampling::Blocks(mask) => {
             let s = mask.stride;
+            let marked = mask.marked.iter().filter(|&&m| m).count();
+            out.points.reserve(marked * s * s);
             for v in 0..h {
                 let blocks = &mask.marked[(v / s) * mask.blocks_wide..(v / s + 1) * mask.blocks_wide];
                 // Runs of marked blocks -> column ranges.
@@ -454,12 +508,8 @@ impl Rays {
 /// Largest cloud accepted (points); guards allocations on bad input.
 pub const MAX_CLOUD_POINTS: usize = 5_000_000;
 
-fn cloud_to_world(
-    cloud: &PointCloud<'_>,
-    world_from_camera: &Isometry3<f64>,
-    keep: &Keep,
-    step: usize,
-) -> Result<WorldCloud> {
+/// The number of points, after checking the byte length and the limit.
+fn check_cloud(cloud: &PointCloud<'_>) -> Result<usize> {
     if !cloud.xyz.len().is_multiple_of(12) {
         return Err(Error::invalid(
             "cloud.xyz",
@@ -476,6 +526,16 @@ fn cloud_to_world(
             format!("{n} points exceed the limit of {MAX_CLOUD_POINTS}"),
         ));
     }
+    Ok(n)
+}
+
+fn cloud_to_world(
+    cloud: &PointCloud<'_>,
+    world_from_camera: &Isometry3<f64>,
+    keep: &Keep,
+    step: usize,
+) -> Result<WorldCloud> {
+    let n = check_cloud(cloud)?;
     let transform = match cloud.frame {
         CloudFrame::Camera => world_from_camera.cast::<f32>(),
         CloudFrame::World => Isometry3::identity(),

@@ -31,6 +31,8 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use crate::select::EntropySums;
+
 /// Empty pixels with at least this many filled 8-neighbours are filled.
 pub const HOLE_FILL_MIN_NEIGHBOURS: usize = 5;
 
@@ -87,6 +89,8 @@ pub struct OrthoView {
     pub image: Vec<f32>,
     /// View-frame z of the kept surface (m), `+inf` where empty, row-major.
     pub depth_m: Vec<f32>,
+    /// Viewpoint entropy of `image` (bits), as [`crate::select::view_entropy`] computes it.
+    pub entropy: f64,
 }
 
 impl OrthoView {
@@ -129,17 +133,24 @@ impl OrthoView {
             }
         }
         let depth = fill_holes(&depth, l, &filled_box);
+        // Every surface pixel lies in the box (holes are filled inside it):
+        // normalise, and sum the entropy, there only.
         let cube = l as f32 * pixel_size_m;
-        let image = depth
-            .iter()
-            .map(|&z| {
-                if z.is_finite() {
-                    ((0.5 * cube - z) / cube).clamp(0.0, 1.0)
-                } else {
-                    0.0
+        let mut image = vec![0.0f32; l * l];
+        let mut entropy = EntropySums::default();
+        if filled_box.u0 <= filled_box.u1 {
+            for v in filled_box.v0..=filled_box.v1 {
+                let row = v * l;
+                for i in row + filled_box.u0..=row + filled_box.u1 {
+                    let z = depth[i];
+                    if z.is_finite() {
+                        let value = ((0.5 * cube - z) / cube).clamp(0.0, 1.0);
+                        image[i] = value;
+                        entropy.add(value);
+                    }
                 }
-            })
-            .collect();
+            }
+        }
         Self {
             axis,
             object_from_view,
@@ -147,6 +158,7 @@ impl OrthoView {
             pixel_size_m,
             image,
             depth_m: depth,
+            entropy: entropy.bits(),
         }
     }
 
@@ -268,6 +280,11 @@ mod tests {
             })
             .collect();
         let view = OrthoView::render(ViewAxis::Top, true, &points, 32, 0.0025);
+        assert!((view.entropy - crate::select::view_entropy(&view.image)).abs() < 1e-9);
+        assert!(
+            (view.entropy - (400f64).log2()).abs() < 1e-6,
+            "400 equal pixels: log2(400) bits"
+        );
         let filled: Vec<usize> = (0..32 * 32).filter(|&i| view.depth_m[i].is_finite()).collect();
         assert_eq!(filled.len(), 20 * 20);
         for &i in &filled {

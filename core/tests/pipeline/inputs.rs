@@ -2,7 +2,7 @@
 //! a cloud gives the same objects as the depth image it came from; the
 //! block mask loses no object point; moderate sensor noise is tolerated.
 
-use mvgrasp_core::sensor::{Above, BlockMask, sample_world_points, world_points_above};
+use mvgrasp_core::sensor::{Above, BlockMask, world_points_above};
 use mvgrasp_core::{
     CloudFrame, DepthEncoding, DepthFrame, Error, Gripper, Intrinsics, MomentsNet, PlanOptions, Planner,
     PlannerConfig, PointCloud, SceneInput, SensorInput, Workspace, pose_from_parts,
@@ -234,8 +234,8 @@ fn block_mask_loses_no_object_point() {
             normal: [0.0, 0.0, 1.0],
             offset: -(scene.table_z as f32) - 0.008,
         };
-        let sparse = sample_world_points(&sensor, &camera.world_from_camera, &workspace, 4).expect("sparse");
-        let mask = BlockMask::from_sample(&frame, &sparse, 4, &above);
+        let mask =
+            BlockMask::from_frame(&frame, &camera.world_from_camera, &workspace, &above, 4).expect("mask");
         let near = world_points_above(
             &sensor,
             &camera.world_from_camera,
