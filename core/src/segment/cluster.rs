@@ -56,34 +56,47 @@ pub fn euclidean_clusters(points: &[[f32; 3]], config: &ClusterConfig) -> Vec<Ve
     if points.is_empty() || config.tolerance_m.is_nan() || config.tolerance_m <= 0.0 {
         return Vec::new();
     }
-    let component_of_point = connected_components(points, config.tolerance_m);
-    let count = component_of_point
-        .iter()
-        .copied()
-        .max()
-        .map_or(0, |m| m as usize + 1);
-    let mut clusters: Vec<Vec<u32>> = vec![Vec::new(); count];
-    for (i, &c) in component_of_point.iter().enumerate() {
-        clusters[c as usize].push(i as u32);
+    let (cells, component_of_cell, count) = connected_components(points, config.tolerance_m);
+    // Sizes and centroid keys per component, from the cells' sums.
+    let mut sizes = vec![0usize; count];
+    let mut sums = vec![[0i64; 3]; count];
+    for (c, &k) in component_of_cell.iter().enumerate() {
+        sizes[k as usize] += cells.members_of(c).len();
+        for a in 0..3 {
+            sums[k as usize][a] += cells.key_sum[c][a];
+        }
     }
-    let mut kept: Vec<(Vec<u32>, [i64; 3])> = clusters
-        .into_iter()
-        .filter(|c| c.len() >= config.min_points && c.len() <= config.max_points)
-        .map(|c| {
-            let key = centroid_key(points, &c);
-            (c, key)
+    let mut kept: Vec<(usize, [i64; 3])> = (0..count)
+        .filter(|&k| sizes[k] >= config.min_points && sizes[k] <= config.max_points)
+        .map(|k| {
+            // The centroid in 0.1 mm units: integer sums make it independent
+            // of the order the points arrived in.
+            let n = sizes[k] as i64;
+            (k, sums[k].map(|s| (s / n).div_euclid(10)))
         })
         .collect();
     if kept.len() > config.max_objects {
-        kept.sort_by(|a, b| b.0.len().cmp(&a.0.len()).then(a.1.cmp(&b.1)));
+        kept.sort_by(|a, b| sizes[b.0].cmp(&sizes[a.0]).then(a.1.cmp(&b.1)));
         kept.truncate(config.max_objects);
     }
-    kept.sort_by(|a, b| a.1.cmp(&b.1).then(a.0.len().cmp(&b.0.len())));
-    kept.into_iter().map(|(c, _)| c).collect()
+    kept.sort_by(|a, b| a.1.cmp(&b.1).then(sizes[a.0].cmp(&sizes[b.0])));
+    // Gather each kept component's points, cell by cell.
+    let mut position = vec![usize::MAX; count];
+    for (i, &(k, _)) in kept.iter().enumerate() {
+        position[k] = i;
+    }
+    let mut clusters: Vec<Vec<u32>> = kept.iter().map(|&(k, _)| Vec::with_capacity(sizes[k])).collect();
+    for (c, &k) in component_of_cell.iter().enumerate() {
+        if let Some(cluster) = clusters.get_mut(position[k as usize]) {
+            cluster.extend_from_slice(cells.members_of(c));
+        }
+    }
+    clusters
 }
 
-/// Component id of every point (ids in order of first appearance).
-fn connected_components(points: &[[f32; 3]], tolerance_m: f32) -> Vec<u32> {
+/// The cells, the component id of every cell (ids in order of first
+/// appearance) and the number of components.
+fn connected_components(points: &[[f32; 3]], tolerance_m: f32) -> (Cells, Vec<u32>, usize) {
     let radius_sq = tolerance_m * tolerance_m;
     // Slightly under tol / sqrt 3, so rounding never puts a pair farther
     // than the tolerance into one cell.
@@ -146,11 +159,7 @@ fn connected_components(points: &[[f32; 3]], tolerance_m: f32) -> Vec<u32> {
         }
         *component = id_of_root[root];
     }
-    cells
-        .cell_of_point
-        .iter()
-        .map(|&c| component_of_cell[c as usize])
-        .collect()
+    (cells, component_of_cell, next as usize)
 }
 
 /// Cell offsets that can hold a point within the tolerance of a point in the
@@ -192,7 +201,8 @@ struct Cells {
     members: Vec<u32>,
     lo: Vec<[f32; 3]>,
     hi: Vec<[f32; 3]>,
-    cell_of_point: Vec<u32>,
+    /// Per cell, the sum of its points' coordinates in 10 um units.
+    key_sum: Vec<[i64; 3]>,
     /// Slot of each cell in the dense grid (unused with the sparse index).
     slot: Vec<u32>,
     index: CellIndex,
@@ -281,13 +291,17 @@ impl Cells {
         let mut members = vec![0u32; points.len()];
         let mut bb_lo = vec![[f32::INFINITY; 3]; n];
         let mut bb_hi = vec![[f32::NEG_INFINITY; 3]; n];
+        let mut key_sum = vec![[0i64; 3]; n];
         for (i, &c) in cell_of_point.iter().enumerate() {
             let c = c as usize;
             members[fill[c] as usize] = i as u32;
             fill[c] += 1;
             for a in 0..3 {
-                bb_lo[c][a] = bb_lo[c][a].min(points[i][a]);
-                bb_hi[c][a] = bb_hi[c][a].max(points[i][a]);
+                let v = points[i][a];
+                bb_lo[c][a] = bb_lo[c][a].min(v);
+                bb_hi[c][a] = bb_hi[c][a].max(v);
+                // 10 um units, truncated; the cast saturates beyond +-21 km.
+                key_sum[c][a] += i64::from((v * 1e5) as i32);
             }
         }
         Self {
@@ -296,7 +310,7 @@ impl Cells {
             members,
             lo: bb_lo,
             hi: bb_hi,
-            cell_of_point,
+            key_sum,
             slot,
             index,
         }
@@ -304,6 +318,10 @@ impl Cells {
 
     fn len(&self) -> usize {
         self.coords.len()
+    }
+
+    fn members_of(&self, c: usize) -> &[u32] {
+        &self.members[self.start[c] as usize..self.start[c + 1] as usize]
     }
 
     /// False when the cells' point boxes are farther apart than the radius.
@@ -319,10 +337,9 @@ impl Cells {
     }
 
     fn any_pair_within(&self, points: &[[f32; 3]], a: usize, b: usize, radius_sq: f32) -> bool {
-        let of = |c: usize| &self.members[self.start[c] as usize..self.start[c + 1] as usize];
-        of(a).iter().any(|&i| {
+        self.members_of(a).iter().any(|&i| {
             let p = points[i as usize];
-            of(b).iter().any(|&j| {
+            self.members_of(b).iter().any(|&j| {
                 let q = points[j as usize];
                 (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2])
                     <= radius_sq
@@ -382,22 +399,6 @@ impl UnionFind {
         self.parent[b] = a as u32;
         self.size[a] += self.size[b];
     }
-}
-
-/// The cluster centroid in 0.1 mm units: the sort key that makes object ids
-/// independent of the order the points arrived in.
-fn centroid_key(points: &[[f32; 3]], cluster: &[u32]) -> [i64; 3] {
-    let mut sum = [0i64; 3];
-    for &i in cluster {
-        let p = points[i as usize];
-        for a in 0..3 {
-            // Summing integers (10 um units, truncated) makes the key
-            // order-independent; the cast saturates beyond +-21 km.
-            sum[a] += i64::from((p[a] * 1e5) as i32);
-        }
-    }
-    let n = cluster.len().max(1) as i64;
-    sum.map(|s| (s / n).div_euclid(10))
 }
 
 #[cfg(test)]
@@ -511,7 +512,13 @@ mod tests {
                 points.push([5000.0, -5000.0, 0.0]); // a far point: the sparse index
             }
             let tolerance = 0.008 + 0.002 * (trial % 5) as f32;
-            let ours = connected_components(&points, tolerance);
+            let (cells, component_of_cell, _) = connected_components(&points, tolerance);
+            let mut ours = vec![0u32; points.len()];
+            for (c, &k) in component_of_cell.iter().enumerate() {
+                for &i in cells.members_of(c) {
+                    ours[i as usize] = k;
+                }
+            }
             let reference = kd_tree_components(&points, tolerance);
             // Same partition: a bijection between labels.
             let mut map = FxHashMap::default();
