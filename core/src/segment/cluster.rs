@@ -14,7 +14,7 @@
 //! when that box would need more than [`MAX_DENSE_CELLS`] cells), so the
 //! neighbour lookups are array reads. A k-d tree range search per point
 //! (`kiddo`) gives the same components (a test checks it on random clouds)
-//! but measured 4-10x slower here (BENCHMARKS.md), so it serves as the
+//! but measured ~60x slower here (BENCHMARKS.md), so it serves as the
 //! reference, not the engine.
 //!
 //! Objects that touch (packed boxes, a pile) merge into one cluster when
@@ -62,8 +62,8 @@ pub fn euclidean_clusters(points: &[[f32; 3]], config: &ClusterConfig) -> Vec<Ve
     let mut sums = vec![[0i64; 3]; count];
     for (c, &k) in component_of_cell.iter().enumerate() {
         sizes[k as usize] += cells.members_of(c).len();
-        for a in 0..3 {
-            sums[k as usize][a] += cells.key_sum[c][a];
+        for (sum, part) in sums[k as usize].iter_mut().zip(cells.key_sum[c]) {
+            *sum += part;
         }
     }
     let mut kept: Vec<(usize, [i64; 3])> = (0..count)
