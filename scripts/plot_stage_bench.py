@@ -15,14 +15,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 GROUP = ROOT / "target" / "criterion" / "640x480_6_objects"
 STAGES = [
-    ("1_sensor_sparse_for_table", "sensor: sparse sample"),
+    ("1_sensor_random_points_for_table", "sensor: random sample"),
     ("2_table_ransac", "table RANSAC"),
-    ("3_sensor_objects_above_table", "sensor: object points"),
+    ("3_sensor_objects_above_table", "sensor: block mask + objects"),
     ("4_cluster", "clustering"),
     ("5_object_frames", "object frames"),
-    ("6_render_views", "views (3 per object)"),
-    ("7_entropy", "entropy"),
-    ("8_decode_and_rank", "decode + rank"),
+    ("6_render_views_and_entropy", "views + entropy"),
+    ("7_decode_and_rank", "decode + rank"),
 ]
 
 
