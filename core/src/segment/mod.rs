@@ -4,4 +4,4 @@ mod cluster;
 mod table;
 
 pub use cluster::{ClusterConfig, MAX_DENSE_CELLS, euclidean_clusters};
-pub use table::{TableConfig, TablePlane, fit_table, points_above};
+pub use table::{TableConfig, TablePlane, fit_table};

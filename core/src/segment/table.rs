@@ -215,18 +215,6 @@ fn refine(
     (refined.z >= min_up).then(|| (refined, -refined.dot(&centroid)))
 }
 
-/// The points more than `min_height_m` above the plane (the objects).
-pub fn points_above(points: &[[f32; 3]], plane: &TablePlane, min_height_m: f64) -> Vec<[f32; 3]> {
-    let n = plane.normal.cast::<f32>();
-    let offset = plane.offset_m as f32;
-    let min_height = min_height_m as f32;
-    points
-        .iter()
-        .filter(|p| n.x * p[0] + n.y * p[1] + n.z * p[2] + offset > min_height)
-        .copied()
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -261,8 +249,13 @@ mod tests {
                     .abs()
                     < 1e-4
             );
-            let above = points_above(&points, &plane, 0.008);
-            assert_eq!(above.len(), 20 * 20, "the box top and nothing else");
+            let half_space = plane.above(0.008);
+            let n = half_space.normal;
+            let above = points
+                .iter()
+                .filter(|p| n[0] * p[0] + n[1] * p[1] + n[2] * p[2] + half_space.offset > 0.0)
+                .count();
+            assert_eq!(above, 20 * 20, "the box top and nothing else");
         }
     }
 
