@@ -138,7 +138,12 @@ fn stages(c: &mut Criterion) {
     // Stage 6 already sums each view's entropy; this is the standalone
     // function over whole images, for comparison (not on the pipeline path).
     group.bench_function("entropy_of_18_whole_images_standalone", |b| {
-        b.iter(|| views.iter().map(|v| view_entropy(black_box(&v.image))).sum::<f64>())
+        b.iter(|| {
+            views
+                .iter()
+                .map(|v| view_entropy(black_box(&v.image)))
+                .sum::<f64>()
+        })
     });
     group.bench_function("7_decode_and_rank", |b| {
         b.iter_batched(

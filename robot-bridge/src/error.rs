@@ -1,0 +1,20 @@
+//! The one error type of the robot bridge.
+
+/// What can go wrong between a grasp and a motion.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// A pose or joint vector with NaN/inf or an invalid rotation.
+    #[error("invalid `{field}`: {reason}")]
+    InvalidInput {
+        /// The offending field.
+        field: &'static str,
+        /// Why it was rejected.
+        reason: String,
+    },
+    /// No joint solution reaches the pose (within the joint limits).
+    #[error("pose unreachable: {0}")]
+    Unreachable(String),
+}
+
+/// Shorthand used across the crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

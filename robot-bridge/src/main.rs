@@ -1,0 +1,94 @@
+//! `robot-bridge`: the UR5e bridge's command line.
+
+use std::f64::consts::FRAC_PI_2;
+
+use anyhow::{Context, bail};
+use clap::{Parser, Subcommand};
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use robot_bridge::ur5e::Ur5e;
+
+/// UR's usual home: upper arm up, forearm level, tool pointing down.
+const HOME: [f64; 6] = [0.0, -FRAC_PI_2, FRAC_PI_2, -FRAC_PI_2, -FRAC_PI_2, 0.0];
+
+#[derive(Parser)]
+#[command(
+    name = "robot-bridge",
+    version,
+    about = "Turns mvgrasp grasps into UR5e motions"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Joint solutions for a flange pose in the robot base frame.
+    Ik {
+        /// Position x y z (m).
+        #[arg(long, num_args = 3, allow_negative_numbers = true, value_names = ["X", "Y", "Z"])]
+        position: Vec<f64>,
+        /// Orientation quaternion x y z w.
+        #[arg(long, num_args = 4, allow_negative_numbers = true, value_names = ["QX", "QY", "QZ", "QW"])]
+        orientation: Vec<f64>,
+        /// Current joints (rad), to pick the nearest solution.
+        #[arg(long, num_args = 6, allow_negative_numbers = true, default_values_t = HOME)]
+        current: Vec<f64>,
+    },
+    /// Flange pose for joint angles (rad).
+    Fk {
+        /// Six joint angles (rad).
+        #[arg(num_args = 6, allow_negative_numbers = true)]
+        joints: Vec<f64>,
+    },
+}
+
+fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    let arm = Ur5e::default();
+    match cli.command {
+        Command::Ik {
+            position,
+            orientation,
+            current,
+        } => {
+            let q = Quaternion::new(orientation[3], orientation[0], orientation[1], orientation[2]);
+            if q.norm().is_nan() || (q.norm() - 1.0).abs() > 1e-3 {
+                bail!("--orientation must be a unit quaternion (norm {:.6})", q.norm());
+            }
+            let pose = Isometry3::from_parts(
+                Translation3::new(position[0], position[1], position[2]),
+                UnitQuaternion::new_normalize(q),
+            );
+            let current: [f64; 6] = current
+                .try_into()
+                .map_err(|_| anyhow::anyhow!("--current needs 6 values"))?;
+            let solutions = arm.inverse(&pose, current[5]);
+            println!("{} solution(s) (rad):", solutions.len());
+            for s in &solutions {
+                println!("  {}", format_joints(s));
+            }
+            let nearest = arm
+                .inverse_nearest(&pose, &current)
+                .context("no solution within the joint limits")?;
+            println!("nearest to current within limits: {}", format_joints(&nearest));
+        }
+        Command::Fk { joints } => {
+            let q: [f64; 6] = joints
+                .try_into()
+                .map_err(|_| anyhow::anyhow!("6 joint angles needed"))?;
+            let pose = arm.forward(&q);
+            let (p, r) = (pose.translation.vector, pose.rotation);
+            println!("position (m): {:.6} {:.6} {:.6}", p.x, p.y, p.z);
+            println!(
+                "orientation (x y z w): {:.6} {:.6} {:.6} {:.6}",
+                r.i, r.j, r.k, r.w
+            );
+        }
+    }
+    Ok(())
+}
+
+fn format_joints(q: &[f64; 6]) -> String {
+    q.iter().map(|v| format!("{v:+.6}")).collect::<Vec<_>>().join(" ")
+}

@@ -1,0 +1,5 @@
+//! The UR5e arm.
+
+mod kinematics;
+
+pub use kinematics::{DhParams, JointLimits, Joints, Ur5e, check_joints, check_pose};
