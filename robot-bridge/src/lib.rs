@@ -17,6 +17,7 @@
 //! ```
 
 mod error;
+pub mod pick;
 pub mod ur5e;
 
 pub use error::{Error, Result};

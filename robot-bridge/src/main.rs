@@ -5,6 +5,7 @@ use std::f64::consts::FRAC_PI_2;
 use anyhow::{Context, bail};
 use clap::{Parser, Subcommand};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use robot_bridge::pick::{GraspTarget, PickConfig, plan_pick, urscript};
 use robot_bridge::ur5e::Ur5e;
 
 /// UR's usual home: upper arm up, forearm level, tool pointing down.
@@ -32,6 +33,21 @@ enum Command {
         #[arg(long, num_args = 4, allow_negative_numbers = true, value_names = ["QX", "QY", "QZ", "QW"])]
         orientation: Vec<f64>,
         /// Current joints (rad), to pick the nearest solution.
+        #[arg(long, num_args = 6, allow_negative_numbers = true, default_values_t = HOME)]
+        current: Vec<f64>,
+    },
+    /// Dry run: the pick motion for one grasp (world = robot base here), as URScript on stdout.
+    Script {
+        /// Grasp centre x y z (m), mvgrasp grasp frame.
+        #[arg(long, num_args = 3, allow_negative_numbers = true, value_names = ["X", "Y", "Z"])]
+        position: Vec<f64>,
+        /// Grasp orientation quaternion x y z w (+z = approach, +x = closing).
+        #[arg(long, num_args = 4, allow_negative_numbers = true, value_names = ["QX", "QY", "QZ", "QW"])]
+        orientation: Vec<f64>,
+        /// Opening (m).
+        #[arg(long, default_value_t = 0.05)]
+        width: f64,
+        /// Current joints (rad).
         #[arg(long, num_args = 6, allow_negative_numbers = true, default_values_t = HOME)]
         current: Vec<f64>,
     },
@@ -73,6 +89,24 @@ fn main() -> anyhow::Result<()> {
                 .context("no solution within the joint limits")?;
             println!("nearest to current within limits: {}", format_joints(&nearest));
         }
+        Command::Script {
+            position,
+            orientation,
+            width,
+            current,
+        } => {
+            let grasp = GraspTarget {
+                world_from_grasp: pose_from_args(&position, &orientation)?,
+                width_m: width,
+                quality: 1.0,
+            };
+            let current: [f64; 6] = current
+                .try_into()
+                .map_err(|_| anyhow::anyhow!("--current needs 6 values"))?;
+            let config = PickConfig::default();
+            let plan = plan_pick(&arm, &config, &[grasp], &current).context("no feasible pick")?;
+            print!("{}", urscript(&plan, &config));
+        }
         Command::Fk { joints } => {
             let q: [f64; 6] = joints
                 .try_into()
@@ -87,6 +121,20 @@ fn main() -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+fn pose_from_args(position: &[f64], orientation: &[f64]) -> anyhow::Result<Isometry3<f64>> {
+    let q = Quaternion::new(orientation[3], orientation[0], orientation[1], orientation[2]);
+    if q.norm().is_nan() || (q.norm() - 1.0).abs() > 1e-3 {
+        bail!("--orientation must be a unit quaternion (norm {:.6})", q.norm());
+    }
+    if position.iter().any(|v| !v.is_finite()) {
+        bail!("--position must be finite");
+    }
+    Ok(Isometry3::from_parts(
+        Translation3::new(position[0], position[1], position[2]),
+        UnitQuaternion::new_normalize(q),
+    ))
 }
 
 fn format_joints(q: &[f64; 6]) -> String {

@@ -107,6 +107,9 @@ impl Default for Ur5e {
     }
 }
 
+/// Weights of each joint's move when choosing among IK solutions.
+const MOVE_WEIGHTS: [f64; 6] = [2.0, 2.0, 1.5, 1.0, 1.0, 0.5];
+
 /// Below this |sin q5| the wrist is treated as singular.
 const WRIST_SINGULAR: f64 = 1e-9;
 
@@ -178,9 +181,11 @@ impl Ur5e {
         solutions
     }
 
-    /// The solution within the joint limits closest to `current` (largest
-    /// single-joint move, then total move), each joint taking the 2 pi
-    /// turn nearest to its current angle; an error when none reaches.
+    /// The solution within the joint limits closest to `current`, each joint
+    /// taking the 2 pi turn nearest to its current angle. Closest means the
+    /// smallest weighted sum of joint moves, the base and shoulder weighing
+    /// most (they swing the whole arm) and the last wrist least; an error
+    /// when none reaches.
     pub fn inverse_nearest(&self, base_from_flange: &Isometry3<f64>, current: &Joints) -> Result<Joints> {
         check_joints("current", current)?;
         check_pose("base_from_flange", base_from_flange)?;
@@ -204,10 +209,12 @@ impl Ur5e {
                 continue;
             }
             let moves = (0..6).map(|i| (candidate[i] - current[i]).abs());
-            let (largest, total) = moves.fold((0.0f64, 0.0f64), |(m, s), v| (m.max(v), s + v));
+            let (largest, total) = moves
+                .zip(MOVE_WEIGHTS)
+                .fold((0.0f64, 0.0f64), |(m, s), (v, w)| (m.max(v), s + w * v));
             let better = match &best {
                 None => true,
-                Some((m, s, _)) => largest < *m - 1e-12 || ((largest - *m).abs() <= 1e-12 && total < *s),
+                Some((m, s, _)) => total < *s - 1e-12 || ((total - *s).abs() <= 1e-12 && largest < *m),
             };
             if better {
                 best = Some((largest, total, candidate));

@@ -1,0 +1,460 @@
+//! Grasp -> pick motion: pre-grasp, linear approach, close, lift, carry to
+//! the basket, release, retreat; every waypoint solved by IK from the one
+//! before, and the linear segments checked for continuity.
+//!
+//! A grasp arrives as `world_from_grasp` in mvgrasp's grasp frame (origin
+//! between the fingertips, +z the approach, +x the closing direction). The
+//! tool centre point (TCP) of the gripper is placed on it. A parallel-jaw
+//! grasp turned half a turn about its approach is the same grasp, so both
+//! are tried and the one with the smaller wrist motion is kept.
+//!
+//! Not checked here yet: collisions of the arm with the table, the basket
+//! and other objects (issue 7 asks for capsule checks and RRT-Connect).
+
+use std::f64::consts::PI;
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+use crate::error::{Error, Result};
+use crate::ur5e::{Joints, Ur5e, check_joints, check_pose};
+
+/// A grasp to execute (from the planner).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GraspTarget {
+    /// Grasp frame in the world (mvgrasp convention).
+    pub world_from_grasp: Isometry3<f64>,
+    /// Opening between the pads (m).
+    pub width_m: f64,
+    /// Planner quality in [0, 1].
+    pub quality: f32,
+}
+
+/// Cell and gripper calibration, and motion limits.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PickConfig {
+    /// Robot base in the world (hand-eye / cell calibration).
+    pub world_from_base: Isometry3<f64>,
+    /// Gripper TCP relative to the flange. Robotiq 2F-140 on the standard
+    /// coupling: about 0.233 m along the flange z; fingers closing along the
+    /// TCP x here. Set both from your own calibration.
+    pub flange_from_tcp: Isometry3<f64>,
+    /// Pre-grasp distance back along the approach (m).
+    pub pregrasp_m: f64,
+    /// Lift height after closing (m, world up).
+    pub lift_m: f64,
+    /// TCP pose above the basket where the object is released (world).
+    pub world_from_drop: Isometry3<f64>,
+    /// Joint speed (rad/s) and acceleration (rad/s^2) for joint moves.
+    pub joint_speed: f64,
+    /// See `joint_speed`.
+    pub joint_accel: f64,
+    /// Tool speed (m/s) and acceleration (m/s^2) for linear moves.
+    pub tool_speed: f64,
+    /// See `tool_speed`.
+    pub tool_accel: f64,
+    /// Largest joint step allowed between samples of a linear move (rad).
+    pub max_joint_step: f64,
+}
+
+impl Default for PickConfig {
+    fn default() -> Self {
+        Self {
+            world_from_base: Isometry3::identity(),
+            flange_from_tcp: Isometry3::translation(0.0, 0.0, 0.233),
+            pregrasp_m: 0.10,
+            lift_m: 0.15,
+            world_from_drop: Isometry3::from_parts(
+                Translation3::new(0.0, -0.45, 0.35),
+                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
+            ),
+            // Conservative: well under the UR5e's limits.
+            joint_speed: 0.6,
+            joint_accel: 0.8,
+            tool_speed: 0.10,
+            tool_accel: 0.5,
+            max_joint_step: 0.35,
+        }
+    }
+}
+
+/// One step of a pick.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Step {
+    /// Joint-space move to `joints`.
+    MoveJ {
+        /// What the step is for.
+        name: &'static str,
+        /// Target joints (rad).
+        joints: Joints,
+    },
+    /// Straight-line TCP move to `base_from_tcp` (ends at `joints`).
+    MoveL {
+        /// What the step is for.
+        name: &'static str,
+        /// Target TCP pose in the robot base frame.
+        base_from_tcp: Isometry3<f64>,
+        /// The joints at the target.
+        joints: Joints,
+    },
+    /// Close the gripper (expecting an object) or open it to `width_m`.
+    Gripper {
+        /// What the step is for.
+        name: &'static str,
+        /// True to close.
+        close: bool,
+        /// The opening to move to when opening (m).
+        width_m: f64,
+    },
+}
+
+/// A feasible pick of one grasp.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PickPlan {
+    /// Index of the grasp in the ranked list.
+    pub grasp_index: usize,
+    /// The steps in order.
+    pub steps: Vec<Step>,
+}
+
+/// The best-ranked grasp whose pick is feasible, and its steps; grasps are
+/// tried in the given (ranked) order. An error says why the last one failed.
+pub fn plan_pick(
+    arm: &Ur5e,
+    config: &PickConfig,
+    grasps: &[GraspTarget],
+    current: &Joints,
+) -> Result<PickPlan> {
+    check_joints("current_joints", current)?;
+    let mut last_error = Error::Unreachable("no grasp given".to_owned());
+    for (index, grasp) in grasps.iter().enumerate() {
+        match plan_one(arm, config, grasp, current) {
+            Ok(steps) => {
+                return Ok(PickPlan {
+                    grasp_index: index,
+                    steps,
+                });
+            }
+            Err(e @ Error::InvalidInput { .. }) => return Err(e),
+            Err(e) => last_error = e,
+        }
+    }
+    Err(last_error)
+}
+
+fn plan_one(arm: &Ur5e, config: &PickConfig, grasp: &GraspTarget, current: &Joints) -> Result<Vec<Step>> {
+    check_pose("grasp.world_from_grasp", &grasp.world_from_grasp)?;
+    if !(grasp.width_m.is_finite() && grasp.width_m >= 0.0) {
+        return Err(Error::InvalidInput {
+            field: "grasp.width_m",
+            reason: format!("{}", grasp.width_m),
+        });
+    }
+    let base_from_world = config.world_from_base.inverse();
+    let tcp_from_flange = config.flange_from_tcp.inverse();
+    let flange_for = |world_from_tcp: &Isometry3<f64>| base_from_world * world_from_tcp * tcp_from_flange;
+    let mut best: Option<(f64, Vec<Step>)> = None;
+    for flip in [0.0, PI] {
+        let world_from_tcp =
+            grasp.world_from_grasp * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), flip);
+        let approach = world_from_tcp.rotation * Vector3::z();
+        let pre = Isometry3::from_parts(
+            Translation3::from(world_from_tcp.translation.vector - config.pregrasp_m * approach),
+            world_from_tcp.rotation,
+        );
+        let lift = Isometry3::from_parts(
+            Translation3::from(world_from_tcp.translation.vector + config.lift_m * Vector3::z()),
+            world_from_tcp.rotation,
+        );
+        let Ok(q_pre) = arm.inverse_nearest(&flange_for(&pre), current) else {
+            continue;
+        };
+        let Ok(q_grasp) = linear(
+            arm,
+            config,
+            &flange_for(&pre),
+            &flange_for(&world_from_tcp),
+            &q_pre,
+        ) else {
+            continue;
+        };
+        let Ok(q_lift) = linear(
+            arm,
+            config,
+            &flange_for(&world_from_tcp),
+            &flange_for(&lift),
+            &q_grasp,
+        ) else {
+            continue;
+        };
+        // Over the basket the tool's turn about the vertical does not matter:
+        // take the quarter turn that is nearest.
+        let Some(q_drop) = [0.0, PI / 2.0, PI, -PI / 2.0]
+            .iter()
+            .filter_map(|yaw| {
+                let drop = config.world_from_drop * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), *yaw);
+                arm.inverse_nearest(&flange_for(&drop), &q_lift).ok()
+            })
+            .min_by(|a, b| joint_distance(&q_lift, a).total_cmp(&joint_distance(&q_lift, b)))
+        else {
+            continue;
+        };
+        let cost = joint_distance(current, &q_pre);
+        let steps = vec![
+            Step::Gripper {
+                name: "open before approach",
+                close: false,
+                width_m: (grasp.width_m + 0.02).min(0.14),
+            },
+            Step::MoveJ {
+                name: "pre-grasp",
+                joints: q_pre,
+            },
+            Step::MoveL {
+                name: "approach",
+                base_from_tcp: base_from_world * world_from_tcp,
+                joints: q_grasp,
+            },
+            Step::Gripper {
+                name: "close",
+                close: true,
+                width_m: 0.0,
+            },
+            Step::MoveL {
+                name: "lift",
+                base_from_tcp: base_from_world * lift,
+                joints: q_lift,
+            },
+            Step::MoveJ {
+                name: "over the basket",
+                joints: q_drop,
+            },
+            Step::Gripper {
+                name: "release",
+                close: false,
+                width_m: 0.14,
+            },
+            Step::MoveJ {
+                name: "retreat",
+                joints: q_lift,
+            },
+        ];
+        if best.as_ref().is_none_or(|(c, _)| cost < *c) {
+            best = Some((cost, steps));
+        }
+    }
+    best.map(|(_, steps)| steps).ok_or_else(|| {
+        let p = grasp.world_from_grasp.translation.vector;
+        Error::Unreachable(format!(
+            "grasp at ({:.3}, {:.3}, {:.3}) m: no continuous pre-grasp/approach/lift/basket motion within the limits",
+            p.x, p.y, p.z
+        ))
+    })
+}
+
+/// Solves a straight flange line from `from` to `to` at 1 cm steps starting
+/// at joints `start`; fails if a sample is unreachable or a joint jumps by
+/// more than `max_joint_step` (a flip through a singularity).
+fn linear(
+    arm: &Ur5e,
+    config: &PickConfig,
+    from: &Isometry3<f64>,
+    to: &Isometry3<f64>,
+    start: &Joints,
+) -> Result<Joints> {
+    let distance = (to.translation.vector - from.translation.vector).norm();
+    let samples = ((distance / 0.01).ceil() as usize).max(1);
+    let mut q = *start;
+    for k in 1..=samples {
+        let t = k as f64 / samples as f64;
+        let pose = from.lerp_slerp(to, t);
+        let next = arm.inverse_nearest(&pose, &q)?;
+        if (0..6).any(|i| (next[i] - q[i]).abs() > config.max_joint_step) {
+            return Err(Error::Unreachable("linear move crosses a singularity".to_owned()));
+        }
+        q = next;
+    }
+    Ok(q)
+}
+
+fn joint_distance(a: &Joints, b: &Joints) -> f64 {
+    (0..6).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max)
+}
+
+/// The arm's part of a pick as a URScript program (gripper steps become
+/// comments: the gripper is driven over its own socket).
+pub fn urscript(plan: &PickPlan, config: &PickConfig) -> String {
+    let t = config.flange_from_tcp;
+    let mut out = String::from("def mvgrasp_pick():\n");
+    out.push_str(&format!("  set_tcp({})\n", pose_literal(&t)));
+    for step in &plan.steps {
+        match step {
+            Step::MoveJ { name, joints } => out.push_str(&format!(
+                "  # {name}\n  movej({}, a={:.3}, v={:.3})\n",
+                joints_literal(joints),
+                config.joint_accel,
+                config.joint_speed
+            )),
+            Step::MoveL {
+                name, base_from_tcp, ..
+            } => out.push_str(&format!(
+                "  # {name}\n  movel({}, a={:.3}, v={:.3})\n",
+                pose_literal(base_from_tcp),
+                config.tool_accel,
+                config.tool_speed
+            )),
+            Step::Gripper { name, close, width_m } => {
+                let action = if *close {
+                    "close".to_owned()
+                } else {
+                    format!("open to {:.0} mm", width_m * 1000.0)
+                };
+                out.push_str(&format!(
+                    "  # gripper: {name} ({action}), sent on the gripper socket\n"
+                ));
+            }
+        }
+    }
+    out.push_str("end\n");
+    out
+}
+
+fn joints_literal(q: &Joints) -> String {
+    format!(
+        "[{}]",
+        q.iter().map(|v| format!("{v:.6}")).collect::<Vec<_>>().join(", ")
+    )
+}
+
+/// URScript pose `p[x, y, z, rx, ry, rz]` (rotation vector).
+fn pose_literal(pose: &Isometry3<f64>) -> String {
+    let (p, r) = (pose.translation.vector, pose.rotation.scaled_axis());
+    format!(
+        "p[{:.6}, {:.6}, {:.6}, {:.6}, {:.6}, {:.6}]",
+        p.x, p.y, p.z, r.x, r.y, r.z
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A top-down grasp 0.45 m in front of the base at table height 0.
+    fn top_grasp(x: f64, y: f64, z: f64) -> GraspTarget {
+        GraspTarget {
+            world_from_grasp: Isometry3::from_parts(
+                Translation3::new(x, y, z),
+                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
+            ),
+            width_m: 0.05,
+            quality: 0.9,
+        }
+    }
+
+    const HOME: Joints = [0.0, -PI / 2.0, PI / 2.0, -PI / 2.0, -PI / 2.0, 0.0];
+
+    #[test]
+    fn reachable_grasp_gives_the_full_sequence_and_poses_match_fk() {
+        let arm = Ur5e::default();
+        let config = PickConfig::default();
+        let plan = plan_pick(&arm, &config, &[top_grasp(0.1, -0.45, 0.05)], &HOME).unwrap();
+        let names: Vec<&str> = plan
+            .steps
+            .iter()
+            .map(|s| match s {
+                Step::MoveJ { name, .. } | Step::MoveL { name, .. } | Step::Gripper { name, .. } => *name,
+            })
+            .collect();
+        assert_eq!(
+            names,
+            [
+                "open before approach",
+                "pre-grasp",
+                "approach",
+                "close",
+                "lift",
+                "over the basket",
+                "release",
+                "retreat"
+            ]
+        );
+        // The approach ends with the TCP on the grasp (either half turn).
+        let Step::MoveL { joints, .. } = &plan.steps[2] else {
+            panic!("approach is linear")
+        };
+        let tcp = arm.forward(joints) * config.flange_from_tcp;
+        let grasp = top_grasp(0.1, -0.45, 0.05).world_from_grasp;
+        assert!((tcp.translation.vector - grasp.translation.vector).norm() < 1e-6);
+        let z_tcp = tcp.rotation * Vector3::z();
+        assert!(
+            (z_tcp - grasp.rotation * Vector3::z()).norm() < 1e-6,
+            "same approach"
+        );
+        // Carrying to the basket turns the wrist as needed rather than the
+        // whole arm: no joint swings by more than a radian.
+        let (Step::MoveL { joints: q_lift, .. }, Step::MoveJ { joints: q_drop, .. }) =
+            (&plan.steps[4], &plan.steps[5])
+        else {
+            panic!("lift then basket")
+        };
+        assert!(joint_distance(q_lift, q_drop) < 1.0, "{q_lift:?} -> {q_drop:?}");
+        let script = urscript(&plan, &config);
+        assert!(script.starts_with("def mvgrasp_pick():\n  set_tcp(p[0.000000, 0.000000, 0.233000"));
+        assert_eq!(script.matches("movej(").count(), 3);
+        assert_eq!(script.matches("movel(").count(), 2);
+        assert!(script.ends_with("end\n"));
+    }
+
+    #[test]
+    fn unreachable_grasps_are_skipped_for_the_next_ranked_one() {
+        let arm = Ur5e::default();
+        let far = top_grasp(1.5, 0.0, 0.05);
+        let near = top_grasp(0.0, -0.5, 0.05);
+        let plan = plan_pick(&arm, &PickConfig::default(), &[far, near], &HOME).unwrap();
+        assert_eq!(plan.grasp_index, 1);
+        let err = plan_pick(&arm, &PickConfig::default(), &[far], &HOME).unwrap_err();
+        assert!(matches!(err, Error::Unreachable(_)), "{err}");
+    }
+
+    #[test]
+    fn nan_input_is_rejected_not_moved_on() {
+        let arm = Ur5e::default();
+        let mut bad = top_grasp(0.1, -0.45, 0.05);
+        bad.world_from_grasp.translation.vector.x = f64::NAN;
+        let err = plan_pick(
+            &arm,
+            &PickConfig::default(),
+            &[bad, top_grasp(0.1, -0.45, 0.05)],
+            &HOME,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                Error::InvalidInput {
+                    field: "grasp.world_from_grasp",
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let mut current = HOME;
+        current[2] = f64::INFINITY;
+        let err = plan_pick(
+            &arm,
+            &PickConfig::default(),
+            &[top_grasp(0.1, -0.45, 0.05)],
+            &current,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                Error::InvalidInput {
+                    field: "current_joints",
+                    ..
+                }
+            ),
+            "{err}"
+        );
+    }
+}
