@@ -22,5 +22,8 @@ echo "== cargo doc"
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
 echo "== doc tests"
 cargo test --workspace --doc --quiet
+echo "== ur_rtde (a third-party RTDE client) against the robot-bridge emulator"
+cargo build --quiet -p mvgrasp-robot-bridge --bin robot-bridge
+python3 robot-bridge/tests/ur_rtde_check.py target/debug/robot-bridge
 echo "== cargo nextest"
 cargo nextest run --workspace --no-fail-fast

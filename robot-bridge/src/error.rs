@@ -14,6 +14,15 @@ pub enum Error {
     /// No joint solution reaches the pose (within the joint limits).
     #[error("pose unreachable: {0}")]
     Unreachable(String),
+    /// A connection failed, timed out or dropped.
+    #[error("connection: {0}")]
+    Io(String),
+    /// The peer sent something malformed.
+    #[error("protocol: {0}")]
+    Protocol(String),
+    /// The controller refused a request or is not in a state to move.
+    #[error("controller: {0}")]
+    Controller(String),
 }
 
 /// Shorthand used across the crate.

@@ -16,8 +16,11 @@
 //! # Ok::<(), robot_bridge::Error>(())
 //! ```
 
+pub mod emulate;
 mod error;
 pub mod pick;
+pub mod rtde;
+pub mod script;
 pub mod ur5e;
 
 pub use error::{Error, Result};

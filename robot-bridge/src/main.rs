@@ -51,6 +51,18 @@ enum Command {
         #[arg(long, num_args = 6, allow_negative_numbers = true, default_values_t = HOME)]
         current: Vec<f64>,
     },
+    /// Run the controller emulator (RTDE + script receiver) until interrupted.
+    Emulate {
+        /// Address to listen on (loopback by default).
+        #[arg(long, default_value = "127.0.0.1")]
+        host: String,
+        /// RTDE port.
+        #[arg(long, default_value_t = 30004)]
+        rtde_port: u16,
+        /// Script (secondary interface) port.
+        #[arg(long, default_value_t = 30002)]
+        script_port: u16,
+    },
     /// Flange pose for joint angles (rad).
     Fk {
         /// Six joint angles (rad).
@@ -106,6 +118,21 @@ fn main() -> anyhow::Result<()> {
             let config = PickConfig::default();
             let plan = plan_pick(&arm, &config, &[grasp], &current).context("no feasible pick")?;
             print!("{}", urscript(&plan, &config));
+        }
+        Command::Emulate {
+            host,
+            rtde_port,
+            script_port,
+        } => {
+            let emulator = robot_bridge::emulate::Emulator::start(&host, rtde_port, script_port, HOME)
+                .context("cannot start the emulator")?;
+            println!(
+                "emulating a UR5e: RTDE on {}, scripts on {}",
+                emulator.rtde_address, emulator.script_address
+            );
+            loop {
+                std::thread::sleep(std::time::Duration::from_secs(3600));
+            }
         }
         Command::Fk { joints } => {
             let q: [f64; 6] = joints

@@ -1,0 +1,209 @@
+//! A UR controller emulator for tests and dry runs: an RTDE server (state
+//! out), a script receiver that executes `movej` / `movel` by interpolating
+//! the joints at the commanded speed, and fault injection (protective stop,
+//! dropped connections, an output recipe already in use).
+//!
+//! Simplifications, stated: `movel` is interpolated in joint space between
+//! its end points (the TCP path is not a straight line here); once the data
+//! stream has started, the RTDE server no longer reads from the client.
+
+mod rtde_server;
+mod script_server;
+
+use std::net::{SocketAddr, TcpListener};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use nalgebra::Isometry3;
+
+use crate::ur5e::{Joints, Ur5e};
+
+/// Faults to inject; flip them at any time.
+#[derive(Debug, Default)]
+pub struct Faults {
+    /// Trip a protective stop: motion halts, safety mode 3, until unlocked.
+    pub protective_stop: AtomicBool,
+    /// Close every open connection (and refuse new ones) while set.
+    pub drop_connections: AtomicBool,
+    /// Answer every output variable with `IN_USE`.
+    pub recipe_in_use: AtomicBool,
+}
+
+/// A queued joint motion.
+#[derive(Debug, Clone, Copy)]
+struct Motion {
+    target: Joints,
+    /// Speed of the fastest joint (rad/s).
+    speed: f64,
+}
+
+/// The emulated robot.
+#[derive(Debug)]
+struct Robot {
+    arm: Ur5e,
+    q: Joints,
+    flange_from_tcp: Isometry3<f64>,
+    safety_mode: i32,
+    motions: std::collections::VecDeque<Motion>,
+    started: Instant,
+}
+
+impl Robot {
+    fn tcp_pose(&self) -> [f64; 6] {
+        let pose = self.arm.forward(&self.q) * self.flange_from_tcp;
+        let (p, r) = (pose.translation.vector, pose.rotation.scaled_axis());
+        [p.x, p.y, p.z, r.x, r.y, r.z]
+    }
+
+    fn runtime_state(&self) -> u32 {
+        if self.motions.is_empty() { 1 } else { 2 }
+    }
+}
+
+struct Shared {
+    robot: Mutex<Robot>,
+    faults: Faults,
+    stop: AtomicBool,
+}
+
+impl Shared {
+    fn robot(&self) -> MutexGuard<'_, Robot> {
+        // A panicked worker must not take the emulator down with it.
+        self.robot
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    fn should_close(&self) -> bool {
+        self.stop.load(Ordering::Relaxed) || self.faults.drop_connections.load(Ordering::Relaxed)
+    }
+}
+
+/// A running emulator; stops when dropped.
+pub struct Emulator {
+    shared: Arc<Shared>,
+    /// Where the RTDE server listens.
+    pub rtde_address: SocketAddr,
+    /// Where the script receiver listens.
+    pub script_address: SocketAddr,
+    threads: Vec<JoinHandle<()>>,
+}
+
+/// Servo period of the emulated controller (500 Hz, as the e-series).
+const TICK: Duration = Duration::from_millis(2);
+
+impl Emulator {
+    /// Starts on `host` with the given ports (0 = any free port), the arm at `initial_q`.
+    pub fn start(host: &str, rtde_port: u16, script_port: u16, initial_q: Joints) -> std::io::Result<Self> {
+        let shared = Arc::new(Shared {
+            robot: Mutex::new(Robot {
+                arm: Ur5e::default(),
+                q: initial_q,
+                flange_from_tcp: Isometry3::identity(),
+                safety_mode: 1,
+                motions: Default::default(),
+                started: Instant::now(),
+            }),
+            faults: Faults::default(),
+            stop: AtomicBool::new(false),
+        });
+        let rtde = TcpListener::bind((host, rtde_port))?;
+        let script = TcpListener::bind((host, script_port))?;
+        let (rtde_address, script_address) = (rtde.local_addr()?, script.local_addr()?);
+        let threads = vec![
+            spawn_servo(Arc::clone(&shared)),
+            spawn_acceptor(rtde, Arc::clone(&shared), rtde_server::serve),
+            spawn_acceptor(script, Arc::clone(&shared), script_server::serve),
+        ];
+        Ok(Self {
+            shared,
+            rtde_address,
+            script_address,
+            threads,
+        })
+    }
+
+    /// The fault switches.
+    pub fn faults(&self) -> &Faults {
+        &self.shared.faults
+    }
+
+    /// Current joints.
+    pub fn joints(&self) -> Joints {
+        self.shared.robot().q
+    }
+
+    /// Clears a protective stop (what the dashboard's `unlock protective stop` does).
+    pub fn unlock_protective_stop(&self) {
+        self.shared.faults.protective_stop.store(false, Ordering::Relaxed);
+        self.shared.robot().safety_mode = 1;
+    }
+}
+
+impl Drop for Emulator {
+    fn drop(&mut self) {
+        self.shared.stop.store(true, Ordering::Relaxed);
+        for thread in self.threads.drain(..) {
+            let _ = thread.join();
+        }
+    }
+}
+
+/// The servo loop: moves the joints toward the queued targets, and halts on a protective stop.
+fn spawn_servo(shared: Arc<Shared>) -> JoinHandle<()> {
+    std::thread::spawn(move || {
+        let dt = TICK.as_secs_f64();
+        while !shared.stop.load(Ordering::Relaxed) {
+            {
+                let mut robot = shared.robot();
+                if shared.faults.protective_stop.load(Ordering::Relaxed) {
+                    robot.safety_mode = 3;
+                }
+                if robot.safety_mode != 1 {
+                    robot.motions.clear();
+                } else if let Some(motion) = robot.motions.front().copied() {
+                    let remaining: Vec<f64> = (0..6).map(|i| motion.target[i] - robot.q[i]).collect();
+                    let largest = remaining.iter().fold(0.0f64, |m, r| m.max(r.abs()));
+                    let step = motion.speed * dt;
+                    if largest <= step {
+                        robot.q = motion.target;
+                        robot.motions.pop_front();
+                    } else {
+                        for (q, r) in robot.q.iter_mut().zip(&remaining) {
+                            *q += r * step / largest;
+                        }
+                    }
+                }
+            }
+            std::thread::sleep(TICK);
+        }
+    })
+}
+
+/// Accepts connections until the emulator stops, one thread each.
+fn spawn_acceptor(
+    listener: TcpListener,
+    shared: Arc<Shared>,
+    serve: fn(std::net::TcpStream, &Shared),
+) -> JoinHandle<()> {
+    std::thread::spawn(move || {
+        let _ = listener.set_nonblocking(true);
+        let mut workers = Vec::new();
+        while !shared.stop.load(Ordering::Relaxed) {
+            match listener.accept() {
+                Ok((stream, _)) if !shared.faults.drop_connections.load(Ordering::Relaxed) => {
+                    let _ = stream.set_nonblocking(false);
+                    let shared = Arc::clone(&shared);
+                    workers.push(std::thread::spawn(move || serve(stream, &shared)));
+                }
+                Ok(_) => {} // dropped on the floor: the connection closes
+                Err(_) => std::thread::sleep(Duration::from_millis(5)),
+            }
+        }
+        for worker in workers {
+            let _ = worker.join();
+        }
+    })
+}
