@@ -16,8 +16,11 @@
 //! # Ok::<(), robot_bridge::Error>(())
 //! ```
 
+pub mod dashboard;
 pub mod emulate;
 mod error;
+pub mod execute;
+pub mod gripper;
 pub mod pick;
 pub mod rtde;
 pub mod script;

@@ -5,6 +5,7 @@ use std::f64::consts::FRAC_PI_2;
 use anyhow::{Context, bail};
 use clap::{Parser, Subcommand};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use robot_bridge::emulate::{Emulator, EmulatorPorts};
 use robot_bridge::pick::{GraspTarget, PickConfig, plan_pick, urscript};
 use robot_bridge::ur5e::Ur5e;
 
@@ -62,6 +63,12 @@ enum Command {
         /// Script (secondary interface) port.
         #[arg(long, default_value_t = 30002)]
         script_port: u16,
+        /// Dashboard port.
+        #[arg(long, default_value_t = 29999)]
+        dashboard_port: u16,
+        /// Robotiq URCap socket port.
+        #[arg(long, default_value_t = 63352)]
+        gripper_port: u16,
     },
     /// Flange pose for joint angles (rad).
     Fk {
@@ -123,12 +130,22 @@ fn main() -> anyhow::Result<()> {
             host,
             rtde_port,
             script_port,
+            dashboard_port,
+            gripper_port,
         } => {
-            let emulator = robot_bridge::emulate::Emulator::start(&host, rtde_port, script_port, HOME)
-                .context("cannot start the emulator")?;
+            let ports = EmulatorPorts {
+                rtde: rtde_port,
+                script: script_port,
+                dashboard: dashboard_port,
+                gripper: gripper_port,
+            };
+            let emulator = Emulator::start(&host, ports, HOME).context("cannot start the emulator")?;
             println!(
-                "emulating a UR5e: RTDE on {}, scripts on {}",
-                emulator.rtde_address, emulator.script_address
+                "emulating a UR5e: RTDE on {}, scripts on {}, dashboard on {}, gripper on {}",
+                emulator.rtde_address,
+                emulator.script_address,
+                emulator.dashboard_address,
+                emulator.gripper_address
             );
             loop {
                 std::thread::sleep(std::time::Duration::from_secs(3600));

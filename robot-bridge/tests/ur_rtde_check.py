@@ -40,7 +40,7 @@ def main() -> int:
     with socket.socket() as probe:
         if probe.connect_ex(("127.0.0.1", 30004)) == 0:
             return skip("port 30004 is already taken")
-    emulator = subprocess.Popen([str(binary), "emulate", "--rtde-port", "30004", "--script-port", "0"], stdout=subprocess.PIPE, text=True)
+    emulator = subprocess.Popen([str(binary), "emulate", "--rtde-port", "30004", "--script-port", "0", "--dashboard-port", "0", "--gripper-port", "0"], stdout=subprocess.PIPE, text=True)
     try:
         ready = emulator.stdout.readline()
         if "RTDE on" not in ready:

@@ -1,14 +1,20 @@
 //! A UR controller emulator for tests and dry runs: an RTDE server (state
 //! out), a script receiver that executes `movej` / `movel` by interpolating
-//! the joints at the commanded speed, and fault injection (protective stop,
-//! dropped connections, an output recipe already in use).
+//! the joints at the commanded speed, the dashboard server, a Robotiq
+//! 2F-140 on the URCap socket (closing stops on an object of a set width),
+//! and fault injection (protective stop, dropped connections, an output
+//! recipe already in use).
 //!
 //! Simplifications, stated: `movel` is interpolated in joint space between
 //! its end points (the TCP path is not a straight line here); once the data
 //! stream has started, the RTDE server no longer reads from the client.
 
+mod dashboard_server;
+mod gripper_server;
 mod rtde_server;
 mod script_server;
+
+use gripper_server::GripperSim;
 
 use std::net::{SocketAddr, TcpListener};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -64,6 +70,7 @@ impl Robot {
 
 struct Shared {
     robot: Mutex<Robot>,
+    gripper: Mutex<GripperSim>,
     faults: Faults,
     stop: AtomicBool,
 }
@@ -76,8 +83,39 @@ impl Shared {
             .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
+    fn gripper(&self) -> MutexGuard<'_, GripperSim> {
+        self.gripper
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
     fn should_close(&self) -> bool {
         self.stop.load(Ordering::Relaxed) || self.faults.drop_connections.load(Ordering::Relaxed)
+    }
+}
+
+/// The ports to listen on (0 = any free port).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct EmulatorPorts {
+    /// RTDE.
+    pub rtde: u16,
+    /// Secondary interface (scripts).
+    pub script: u16,
+    /// Dashboard server.
+    pub dashboard: u16,
+    /// Robotiq URCap socket.
+    pub gripper: u16,
+}
+
+impl EmulatorPorts {
+    /// The controller's standard ports: 30004, 30002, 29999, 63352.
+    pub fn standard() -> Self {
+        Self {
+            rtde: 30004,
+            script: 30002,
+            dashboard: 29999,
+            gripper: 63352,
+        }
     }
 }
 
@@ -88,6 +126,10 @@ pub struct Emulator {
     pub rtde_address: SocketAddr,
     /// Where the script receiver listens.
     pub script_address: SocketAddr,
+    /// Where the dashboard server listens.
+    pub dashboard_address: SocketAddr,
+    /// Where the gripper socket listens.
+    pub gripper_address: SocketAddr,
     threads: Vec<JoinHandle<()>>,
 }
 
@@ -95,8 +137,8 @@ pub struct Emulator {
 const TICK: Duration = Duration::from_millis(2);
 
 impl Emulator {
-    /// Starts on `host` with the given ports (0 = any free port), the arm at `initial_q`.
-    pub fn start(host: &str, rtde_port: u16, script_port: u16, initial_q: Joints) -> std::io::Result<Self> {
+    /// Starts on `host` with the given ports, the arm at `initial_q`.
+    pub fn start(host: &str, ports: EmulatorPorts, initial_q: Joints) -> std::io::Result<Self> {
         let shared = Arc::new(Shared {
             robot: Mutex::new(Robot {
                 arm: Ur5e::default(),
@@ -106,23 +148,36 @@ impl Emulator {
                 motions: Default::default(),
                 started: Instant::now(),
             }),
+            gripper: Mutex::new(GripperSim::default()),
             faults: Faults::default(),
             stop: AtomicBool::new(false),
         });
-        let rtde = TcpListener::bind((host, rtde_port))?;
-        let script = TcpListener::bind((host, script_port))?;
+        let rtde = TcpListener::bind((host, ports.rtde))?;
+        let script = TcpListener::bind((host, ports.script))?;
+        let dashboard = TcpListener::bind((host, ports.dashboard))?;
+        let gripper = TcpListener::bind((host, ports.gripper))?;
         let (rtde_address, script_address) = (rtde.local_addr()?, script.local_addr()?);
+        let (dashboard_address, gripper_address) = (dashboard.local_addr()?, gripper.local_addr()?);
         let threads = vec![
             spawn_servo(Arc::clone(&shared)),
             spawn_acceptor(rtde, Arc::clone(&shared), rtde_server::serve),
             spawn_acceptor(script, Arc::clone(&shared), script_server::serve),
+            spawn_acceptor(dashboard, Arc::clone(&shared), dashboard_server::serve),
+            spawn_acceptor(gripper, Arc::clone(&shared), gripper_server::serve),
         ];
         Ok(Self {
             shared,
             rtde_address,
             script_address,
+            dashboard_address,
+            gripper_address,
             threads,
         })
+    }
+
+    /// Sets the width of the object the gripper will close on (`None`: nothing there).
+    pub fn set_object_width(&self, width_m: Option<f64>) {
+        self.shared.gripper().object_width_m = width_m;
     }
 
     /// The fault switches.
@@ -161,6 +216,7 @@ fn spawn_servo(shared: Arc<Shared>) -> JoinHandle<()> {
                 if shared.faults.protective_stop.load(Ordering::Relaxed) {
                     robot.safety_mode = 3;
                 }
+                shared.gripper().tick(dt);
                 if robot.safety_mode != 1 {
                     robot.motions.clear();
                 } else if let Some(motion) = robot.motions.front().copied() {

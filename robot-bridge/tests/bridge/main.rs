@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use robot_bridge::Error;
-use robot_bridge::emulate::Emulator;
+use robot_bridge::emulate::{Emulator, EmulatorPorts};
 use robot_bridge::pick::{GraspTarget, PickConfig, Step, plan_pick, urscript};
 use robot_bridge::rtde::RtdeClient;
 use robot_bridge::script::send_script;
@@ -18,7 +18,7 @@ const HOME: Joints = [0.0, -PI / 2.0, PI / 2.0, -PI / 2.0, -PI / 2.0, 0.0];
 const TIMEOUT: Duration = Duration::from_secs(2);
 
 fn emulator() -> Emulator {
-    Emulator::start("127.0.0.1", 0, 0, HOME).expect("emulator")
+    Emulator::start("127.0.0.1", EmulatorPorts::default(), HOME).expect("emulator")
 }
 
 /// Reads states until `done` holds or `limit` passes.
@@ -154,4 +154,119 @@ fn recipe_in_use_and_dropped_connections_are_clear_errors() {
         }
     };
     assert!(matches!(err, Error::Io(_)), "{err}");
+}
+
+mod executor {
+    use super::*;
+    use robot_bridge::execute::{Controller, PickOutcome, execute_pick};
+    use robot_bridge::gripper::Gripper;
+
+    fn controller(emu: &Emulator) -> Controller {
+        let mut gripper = Gripper::connect(emu.gripper_address, 0.14, TIMEOUT).expect("gripper");
+        gripper.activate().expect("activate");
+        Controller {
+            rtde: RtdeClient::connect(emu.rtde_address, 125.0, TIMEOUT).expect("rtde"),
+            script_address: emu.script_address,
+            gripper,
+            io_timeout: TIMEOUT,
+            motion_timeout: Duration::from_secs(10),
+        }
+    }
+
+    fn plan() -> (robot_bridge::pick::PickPlan, PickConfig) {
+        let grasp = GraspTarget {
+            world_from_grasp: Isometry3::from_parts(
+                Translation3::new(0.1, -0.45, 0.05),
+                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
+            ),
+            width_m: 0.05,
+            quality: 0.9,
+        };
+        let config = PickConfig {
+            joint_speed: 3.0,
+            tool_speed: 0.5,
+            ..PickConfig::default()
+        };
+        (
+            plan_pick(&Ur5e::default(), &config, &[grasp], &HOME).expect("plan"),
+            config,
+        )
+    }
+
+    #[test]
+    fn a_pick_with_an_object_is_placed() {
+        let emu = emulator();
+        emu.set_object_width(Some(0.05));
+        let mut c = controller(&emu);
+        let (plan, config) = plan();
+        let outcome = execute_pick(&mut c, &plan, &config).expect("pick");
+        let PickOutcome::Placed { held_width_m } = outcome else {
+            panic!("{outcome:?}")
+        };
+        assert!((held_width_m - 0.05).abs() < 0.002, "{held_width_m}");
+        let Some(Step::MoveJ { joints, .. }) = plan.steps.last() else {
+            panic!("retreat")
+        };
+        let q = emu.joints();
+        assert!(
+            (0..6).all(|i| (q[i] - joints[i]).abs() < 1e-3),
+            "{q:?} vs {joints:?}"
+        );
+    }
+
+    #[test]
+    fn an_empty_grasp_stops_at_the_object() {
+        let emu = emulator();
+        emu.set_object_width(None);
+        let mut c = controller(&emu);
+        let (plan, config) = plan();
+        assert_eq!(
+            execute_pick(&mut c, &plan, &config).expect("pick"),
+            PickOutcome::NoObject
+        );
+        // Left at the grasp (the approach's end), not lifted.
+        let Step::MoveL { joints, .. } = &plan.steps[2] else {
+            panic!("approach")
+        };
+        let q = emu.joints();
+        assert!(
+            (0..6).all(|i| (q[i] - joints[i]).abs() < 1e-3),
+            "{q:?} vs {joints:?}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+        assert_eq!(emu.joints(), q, "and it stays there");
+    }
+
+    #[test]
+    fn a_protective_stop_mid_pick_ends_it_stopped() {
+        let emu = emulator();
+        let mut c = controller(&emu);
+        let (plan, config) = plan();
+        std::thread::scope(|s| {
+            s.spawn(|| {
+                std::thread::sleep(Duration::from_millis(150));
+                emu.faults().protective_stop.store(true, Ordering::Relaxed);
+            });
+            let err = execute_pick(&mut c, &plan, &config).expect_err("stopped");
+            assert!(
+                matches!(&err, Error::Controller(m) if m.contains("protective stop")),
+                "{err}"
+            );
+        });
+        let q = emu.joints();
+        std::thread::sleep(Duration::from_millis(100));
+        assert_eq!(emu.joints(), q, "nothing moves after the stop");
+        // Recovery through the dashboard, when configured to.
+        let reply = robot_bridge::dashboard::dashboard_command(
+            emu.dashboard_address,
+            "unlock protective stop",
+            TIMEOUT,
+        )
+        .expect("dashboard");
+        assert_eq!(reply, "Protective stop releasing");
+        let status =
+            robot_bridge::dashboard::dashboard_command(emu.dashboard_address, "safetystatus", TIMEOUT)
+                .expect("dashboard");
+        assert_eq!(status, "Safetystatus: NORMAL");
+    }
 }

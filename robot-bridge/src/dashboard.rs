@@ -1,0 +1,42 @@
+//! The dashboard server (port 29999): one text command, one text answer.
+//! Used only for recovery actions, and only when the bridge is configured to.
+
+use std::io::{BufRead, BufReader, Write};
+use std::net::{TcpStream, ToSocketAddrs};
+use std::time::Duration;
+
+use crate::error::{Error, Result};
+
+/// Sends one dashboard command (e.g. `safetystatus`, `unlock protective stop`)
+/// and returns the controller's answer line.
+pub fn dashboard_command(address: impl ToSocketAddrs, command: &str, timeout: Duration) -> Result<String> {
+    let address = address
+        .to_socket_addrs()
+        .map_err(|e| Error::Io(format!("dashboard address: {e}")))?
+        .next()
+        .ok_or_else(|| Error::Io("dashboard address resolves to nothing".to_owned()))?;
+    let stream = TcpStream::connect_timeout(&address, timeout)
+        .map_err(|e| Error::Io(format!("dashboard connect {address}: {e}")))?;
+    stream
+        .set_read_timeout(Some(timeout))
+        .map_err(|e| Error::Io(e.to_string()))?;
+    stream
+        .set_write_timeout(Some(timeout))
+        .map_err(|e| Error::Io(e.to_string()))?;
+    let mut writer = stream.try_clone().map_err(|e| Error::Io(e.to_string()))?;
+    let mut reader = BufReader::new(stream);
+    let mut line = String::new();
+    // The server greets first ("Connected: Universal Robots Dashboard Server").
+    reader
+        .read_line(&mut line)
+        .map_err(|e| Error::Io(format!("dashboard greeting: {e}")))?;
+    writer
+        .write_all(format!("{command}\n").as_bytes())
+        .map_err(|e| Error::Io(format!("dashboard send: {e}")))?;
+    line.clear();
+    match reader.read_line(&mut line) {
+        Ok(0) => Err(Error::Io("dashboard closed the connection".to_owned())),
+        Ok(_) => Ok(line.trim().to_owned()),
+        Err(e) => Err(Error::Io(format!("dashboard reply to `{command}`: {e}"))),
+    }
+}
