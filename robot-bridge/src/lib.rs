@@ -16,6 +16,7 @@
 //! # Ok::<(), robot_bridge::Error>(())
 //! ```
 
+pub mod collision;
 pub mod dashboard;
 pub mod emulate;
 mod error;

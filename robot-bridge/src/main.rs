@@ -118,12 +118,13 @@ fn main() -> anyhow::Result<()> {
                 world_from_grasp: pose_from_args(&position, &orientation)?,
                 width_m: width,
                 quality: 1.0,
+                object: None,
             };
             let current: [f64; 6] = current
                 .try_into()
                 .map_err(|_| anyhow::anyhow!("--current needs 6 values"))?;
             let config = PickConfig::default();
-            let plan = plan_pick(&arm, &config, &[grasp], &current).context("no feasible pick")?;
+            let plan = plan_pick(&arm, &config, &[grasp], &[], &current).context("no feasible pick")?;
             print!("{}", urscript(&plan, &config));
         }
         Command::Emulate {

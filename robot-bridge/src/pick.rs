@@ -8,13 +8,17 @@
 //! grasp turned half a turn about its approach is the same grasp, so both
 //! are tried and the one with the smaller wrist motion is kept.
 //!
-//! Not checked here yet: collisions of the arm with the table, the basket
-//! and other objects (issue 7 asks for capsule checks and RRT-Connect).
+//! Every waypoint and every sample of the linear moves is checked for
+//! collisions of the arm (capsules) with the cell's obstacles and the other
+//! detected objects; joint moves whose straight line collides are planned
+//! around with RRT-Connect (`collision`). Not modelled: the object held
+//! between the fingers while it is carried.
 
 use std::f64::consts::PI;
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
+use crate::collision::{ArmModel, BoxObstacle, CollisionWorld};
 use crate::error::{Error, Result};
 use crate::ur5e::{Joints, Ur5e, check_joints, check_pose};
 
@@ -27,6 +31,9 @@ pub struct GraspTarget {
     pub width_m: f64,
     /// Planner quality in [0, 1].
     pub quality: f32,
+    /// Index of the grasped object in the scene given to [`plan_pick`]
+    /// (excluded from that grasp's collision checks).
+    pub object: Option<usize>,
 }
 
 /// Cell and gripper calibration, and motion limits.
@@ -54,6 +61,14 @@ pub struct PickConfig {
     pub tool_accel: f64,
     /// Largest joint step allowed between samples of a linear move (rad).
     pub max_joint_step: f64,
+    /// Fixed obstacles of the cell (table, basket), world frame.
+    pub obstacles: Vec<BoxObstacle>,
+    /// The arm's collision geometry.
+    pub arm_model: ArmModel,
+    /// RRT-Connect seed (paths are deterministic per seed).
+    pub rrt_seed: u64,
+    /// RRT-Connect iterations before giving up.
+    pub rrt_iterations: usize,
 }
 
 impl Default for PickConfig {
@@ -73,6 +88,10 @@ impl Default for PickConfig {
             tool_speed: 0.10,
             tool_accel: 0.5,
             max_joint_step: 0.35,
+            obstacles: Vec::new(),
+            arm_model: ArmModel::default(),
+            rrt_seed: 1,
+            rrt_iterations: 3000,
         }
     }
 }
@@ -116,18 +135,30 @@ pub struct PickPlan {
     pub steps: Vec<Step>,
 }
 
-/// The best-ranked grasp whose pick is feasible, and its steps; grasps are
-/// tried in the given (ranked) order. An error says why the last one failed.
+/// The best-ranked grasp whose pick is feasible and collision-free, and its
+/// steps; grasps are tried in the given (ranked) order. `scene` holds the
+/// detected objects as boxes; a grasp's own object (`GraspTarget::object`)
+/// is left out of its checks. An error says why the last grasp failed.
 pub fn plan_pick(
     arm: &Ur5e,
     config: &PickConfig,
     grasps: &[GraspTarget],
+    scene: &[BoxObstacle],
     current: &Joints,
 ) -> Result<PickPlan> {
     check_joints("current_joints", current)?;
     let mut last_error = Error::Unreachable("no grasp given".to_owned());
     for (index, grasp) in grasps.iter().enumerate() {
-        match plan_one(arm, config, grasp, current) {
+        let mut obstacles = config.obstacles.clone();
+        obstacles.extend(
+            scene
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| Some(*i) != grasp.object)
+                .map(|(_, o)| o.clone()),
+        );
+        let world = CollisionWorld::new(config.world_from_base, &obstacles, config.arm_model.clone());
+        match plan_one(arm, config, &world, grasp, current) {
             Ok(steps) => {
                 return Ok(PickPlan {
                     grasp_index: index,
@@ -141,7 +172,13 @@ pub fn plan_pick(
     Err(last_error)
 }
 
-fn plan_one(arm: &Ur5e, config: &PickConfig, grasp: &GraspTarget, current: &Joints) -> Result<Vec<Step>> {
+fn plan_one(
+    arm: &Ur5e,
+    config: &PickConfig,
+    world: &CollisionWorld,
+    grasp: &GraspTarget,
+    current: &Joints,
+) -> Result<Vec<Step>> {
     check_pose("grasp.world_from_grasp", &grasp.world_from_grasp)?;
     if !(grasp.width_m.is_finite() && grasp.width_m >= 0.0) {
         return Err(Error::InvalidInput {
@@ -149,10 +186,19 @@ fn plan_one(arm: &Ur5e, config: &PickConfig, grasp: &GraspTarget, current: &Join
             reason: format!("{}", grasp.width_m),
         });
     }
+    if let Some(hit) = world.collision(arm, current) {
+        return Err(Error::Controller(format!(
+            "the arm already touches `{hit}` at its current joints"
+        )));
+    }
     let base_from_world = config.world_from_base.inverse();
     let tcp_from_flange = config.flange_from_tcp.inverse();
     let flange_for = |world_from_tcp: &Isometry3<f64>| base_from_world * world_from_tcp * tcp_from_flange;
+    let joint_path = |from: &Joints, to: &Joints| {
+        world.plan_joint_path(arm, from, to, config.rrt_seed, config.rrt_iterations)
+    };
     let mut best: Option<(f64, Vec<Step>)> = None;
+    let mut reason = "no IK solution within the limits".to_owned();
     for flip in [0.0, PI] {
         let world_from_tcp =
             grasp.world_from_grasp * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), flip);
@@ -168,76 +214,97 @@ fn plan_one(arm: &Ur5e, config: &PickConfig, grasp: &GraspTarget, current: &Join
         let Ok(q_pre) = arm.inverse_nearest(&flange_for(&pre), current) else {
             continue;
         };
-        let Ok(q_grasp) = linear(
+        let q_grasp = match linear(
             arm,
             config,
+            world,
             &flange_for(&pre),
             &flange_for(&world_from_tcp),
             &q_pre,
-        ) else {
-            continue;
+        ) {
+            Ok(q) => q,
+            Err(e) => {
+                reason = format!("approach: {e}");
+                continue;
+            }
         };
-        let Ok(q_lift) = linear(
+        let q_lift = match linear(
             arm,
             config,
+            world,
             &flange_for(&world_from_tcp),
             &flange_for(&lift),
             &q_grasp,
-        ) else {
-            continue;
+        ) {
+            Ok(q) => q,
+            Err(e) => {
+                reason = format!("lift: {e}");
+                continue;
+            }
         };
         // Over the basket the tool's turn about the vertical does not matter:
-        // take the quarter turn that is nearest.
+        // take the nearest quarter turn that is free of collisions.
         let Some(q_drop) = [0.0, PI / 2.0, PI, -PI / 2.0]
             .iter()
             .filter_map(|yaw| {
                 let drop = config.world_from_drop * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), *yaw);
                 arm.inverse_nearest(&flange_for(&drop), &q_lift).ok()
             })
+            .filter(|q| world.collision(arm, q).is_none())
             .min_by(|a, b| joint_distance(&q_lift, a).total_cmp(&joint_distance(&q_lift, b)))
         else {
+            reason = "no collision-free pose over the basket".to_owned();
             continue;
         };
+        // Joint moves: straight if free, else around obstacles (RRT-Connect).
+        let (Some(to_pre), Some(to_drop), Some(back)) = (
+            joint_path(current, &q_pre),
+            joint_path(&q_lift, &q_drop),
+            joint_path(&q_drop, &q_lift),
+        ) else {
+            reason = "no collision-free joint path (RRT-Connect gave up)".to_owned();
+            continue;
+        };
+        let via = |path: &[Joints], name: &'static str| -> Vec<Step> {
+            let n = path.len();
+            path[1..]
+                .iter()
+                .enumerate()
+                .map(|(k, q)| Step::MoveJ {
+                    name: if k + 2 == n { name } else { "via" },
+                    joints: *q,
+                })
+                .collect()
+        };
         let cost = joint_distance(current, &q_pre);
-        let steps = vec![
-            Step::Gripper {
-                name: "open before approach",
-                close: false,
-                width_m: (grasp.width_m + 0.02).min(0.14),
-            },
-            Step::MoveJ {
-                name: "pre-grasp",
-                joints: q_pre,
-            },
-            Step::MoveL {
-                name: "approach",
-                base_from_tcp: base_from_world * world_from_tcp,
-                joints: q_grasp,
-            },
-            Step::Gripper {
-                name: "close",
-                close: true,
-                width_m: 0.0,
-            },
-            Step::MoveL {
-                name: "lift",
-                base_from_tcp: base_from_world * lift,
-                joints: q_lift,
-            },
-            Step::MoveJ {
-                name: "over the basket",
-                joints: q_drop,
-            },
-            Step::Gripper {
-                name: "release",
-                close: false,
-                width_m: 0.14,
-            },
-            Step::MoveJ {
-                name: "retreat",
-                joints: q_lift,
-            },
-        ];
+        let mut steps = vec![Step::Gripper {
+            name: "open before approach",
+            close: false,
+            width_m: (grasp.width_m + 0.02).min(0.14),
+        }];
+        steps.extend(via(&to_pre, "pre-grasp"));
+        steps.push(Step::MoveL {
+            name: "approach",
+            base_from_tcp: base_from_world * world_from_tcp,
+            joints: q_grasp,
+        });
+        steps.push(Step::Gripper {
+            name: "close",
+            close: true,
+            width_m: 0.0,
+        });
+        steps.push(Step::MoveL {
+            name: "lift",
+            base_from_tcp: base_from_world * lift,
+            joints: q_lift,
+        });
+        steps.extend(via(&to_drop, "over the basket"));
+        steps.push(Step::Gripper {
+            name: "release",
+            close: false,
+            width_m: 0.14,
+        });
+        steps.extend(via(&back, "retreat"));
         if best.as_ref().is_none_or(|(c, _)| cost < *c) {
             best = Some((cost, steps));
         }
@@ -245,18 +312,19 @@ fn plan_one(arm: &Ur5e, config: &PickConfig, grasp: &GraspTarget, current: &Join
     best.map(|(_, steps)| steps).ok_or_else(|| {
         let p = grasp.world_from_grasp.translation.vector;
         Error::Unreachable(format!(
-            "grasp at ({:.3}, {:.3}, {:.3}) m: no continuous pre-grasp/approach/lift/basket motion within the limits",
+            "grasp at ({:.3}, {:.3}, {:.3}) m: {reason}",
             p.x, p.y, p.z
         ))
     })
 }
 
 /// Solves a straight flange line from `from` to `to` at 1 cm steps starting
-/// at joints `start`; fails if a sample is unreachable or a joint jumps by
-/// more than `max_joint_step` (a flip through a singularity).
+/// at joints `start`; fails if a sample is unreachable, collides, or a joint
+/// jumps by more than `max_joint_step` (a flip through a singularity).
 fn linear(
     arm: &Ur5e,
     config: &PickConfig,
+    world: &CollisionWorld,
     from: &Isometry3<f64>,
     to: &Isometry3<f64>,
     start: &Joints,
@@ -264,12 +332,20 @@ fn linear(
     let distance = (to.translation.vector - from.translation.vector).norm();
     let samples = ((distance / 0.01).ceil() as usize).max(1);
     let mut q = *start;
-    for k in 1..=samples {
+    for k in 0..=samples {
         let t = k as f64 / samples as f64;
-        let pose = from.lerp_slerp(to, t);
-        let next = arm.inverse_nearest(&pose, &q)?;
+        let next = if k == 0 {
+            q
+        } else {
+            arm.inverse_nearest(&from.lerp_slerp(to, t), &q)?
+        };
         if (0..6).any(|i| (next[i] - q[i]).abs() > config.max_joint_step) {
-            return Err(Error::Unreachable("linear move crosses a singularity".to_owned()));
+            return Err(Error::Unreachable(
+                "the linear move crosses a singularity".to_owned(),
+            ));
+        }
+        if let Some(hit) = world.collision(arm, &next) {
+            return Err(Error::Unreachable(format!("the linear move hits `{hit}`")));
         }
         q = next;
     }
@@ -347,6 +423,7 @@ mod tests {
             ),
             width_m: 0.05,
             quality: 0.9,
+            object: None,
         }
     }
 
@@ -356,7 +433,7 @@ mod tests {
     fn reachable_grasp_gives_the_full_sequence_and_poses_match_fk() {
         let arm = Ur5e::default();
         let config = PickConfig::default();
-        let plan = plan_pick(&arm, &config, &[top_grasp(0.1, -0.45, 0.05)], &HOME).unwrap();
+        let plan = plan_pick(&arm, &config, &[top_grasp(0.1, -0.45, 0.05)], &[], &HOME).unwrap();
         let names: Vec<&str> = plan
             .steps
             .iter()
@@ -409,9 +486,9 @@ mod tests {
         let arm = Ur5e::default();
         let far = top_grasp(1.5, 0.0, 0.05);
         let near = top_grasp(0.0, -0.5, 0.05);
-        let plan = plan_pick(&arm, &PickConfig::default(), &[far, near], &HOME).unwrap();
+        let plan = plan_pick(&arm, &PickConfig::default(), &[far, near], &[], &HOME).unwrap();
         assert_eq!(plan.grasp_index, 1);
-        let err = plan_pick(&arm, &PickConfig::default(), &[far], &HOME).unwrap_err();
+        let err = plan_pick(&arm, &PickConfig::default(), &[far], &[], &HOME).unwrap_err();
         assert!(matches!(err, Error::Unreachable(_)), "{err}");
     }
 
@@ -424,6 +501,7 @@ mod tests {
             &arm,
             &PickConfig::default(),
             &[bad, top_grasp(0.1, -0.45, 0.05)],
+            &[],
             &HOME,
         )
         .unwrap_err();
@@ -443,6 +521,7 @@ mod tests {
             &arm,
             &PickConfig::default(),
             &[top_grasp(0.1, -0.45, 0.05)],
+            &[],
             &current,
         )
         .unwrap_err();
@@ -456,5 +535,112 @@ mod tests {
             ),
             "{err}"
         );
+    }
+
+    fn table() -> BoxObstacle {
+        BoxObstacle {
+            name: "table".to_owned(),
+            world_from_box: Isometry3::translation(0.0, 0.0, -0.05),
+            half_extents_m: Vector3::new(1.2, 1.2, 0.05),
+        }
+    }
+
+    #[test]
+    fn neighbours_block_grasps_but_the_grasped_object_does_not() {
+        let arm = Ur5e::default();
+        let config = PickConfig {
+            obstacles: vec![table()],
+            ..PickConfig::default()
+        };
+        let mut grasp = top_grasp(0.1, -0.45, 0.05);
+        // The grasped object itself: 12 cm tall, so the gripper body reaches
+        // down over it (the fingers are not modelled; they straddle it).
+        let target = BoxObstacle {
+            name: "target".to_owned(),
+            world_from_box: Isometry3::translation(0.1, -0.45, 0.06),
+            half_extents_m: Vector3::new(0.03, 0.03, 0.06),
+        };
+        grasp.object = Some(0);
+        assert!(plan_pick(&arm, &config, &[grasp], std::slice::from_ref(&target), &HOME).is_ok());
+        // Not told which object it grasps: it collides with it.
+        grasp.object = None;
+        let err = plan_pick(&arm, &config, &[grasp], std::slice::from_ref(&target), &HOME).unwrap_err();
+        assert!(err.to_string().contains("target"), "{err}");
+        // A tall neighbour right beside the approach blocks it.
+        grasp.object = Some(0);
+        let neighbour = BoxObstacle {
+            name: "neighbour".to_owned(),
+            world_from_box: Isometry3::translation(0.1, -0.36, 0.15),
+            half_extents_m: Vector3::new(0.04, 0.03, 0.15),
+        };
+        let err = plan_pick(&arm, &config, &[grasp], &[target, neighbour], &HOME).unwrap_err();
+        assert!(err.to_string().contains("neighbour"), "{err}");
+    }
+
+    #[test]
+    fn a_blocked_joint_move_goes_around() {
+        let arm = Ur5e::default();
+        let free = PickConfig {
+            obstacles: vec![table()],
+            ..PickConfig::default()
+        };
+        let grasp = top_grasp(0.1, -0.45, 0.05);
+        let plan = plan_pick(&arm, &free, &[grasp], &[], &HOME).unwrap();
+        let Step::MoveJ { joints: q_pre, .. } = plan.steps[1] else {
+            panic!("pre-grasp")
+        };
+        // A small box where the wrist passes halfway along the straight move to the pre-grasp.
+        let mid: Joints = std::array::from_fn(|i| 0.5 * (HOME[i] + q_pre[i]));
+        let w = arm.forward_frames(&mid)[5].translation.vector;
+        let post = BoxObstacle {
+            name: "post".to_owned(),
+            world_from_box: Isometry3::translation(w.x, w.y, w.z),
+            half_extents_m: Vector3::new(0.03, 0.03, 0.03),
+        };
+        let config = PickConfig {
+            obstacles: vec![table(), post],
+            ..PickConfig::default()
+        };
+        let world = CollisionWorld::new(
+            config.world_from_base,
+            &config.obstacles,
+            config.arm_model.clone(),
+        );
+        assert!(
+            !world.segment_free(&arm, &HOME, &q_pre, 0.02),
+            "the straight move must be blocked"
+        );
+        let plan = plan_pick(&arm, &config, &[grasp], &[], &HOME).unwrap();
+        let joint_targets: Vec<Joints> = plan
+            .steps
+            .iter()
+            .filter_map(|s| match s {
+                Step::MoveJ { joints, .. } | Step::MoveL { joints, .. } => Some(*joints),
+                Step::Gripper { .. } => None,
+            })
+            .collect();
+        assert!(
+            plan.steps
+                .iter()
+                .any(|s| matches!(s, Step::MoveJ { name: "via", .. })),
+            "a detour"
+        );
+        let mut previous = HOME;
+        for (k, q) in joint_targets.iter().enumerate() {
+            // Joint moves are checked as straight joint segments; linear ones were sampled.
+            if matches!(
+                plan.steps
+                    .iter()
+                    .filter(|s| !matches!(s, Step::Gripper { .. }))
+                    .nth(k),
+                Some(Step::MoveJ { .. })
+            ) {
+                assert!(
+                    world.segment_free(&arm, &previous, q, 0.02),
+                    "segment {k} collides"
+                );
+            }
+            previous = *q;
+        }
     }
 }

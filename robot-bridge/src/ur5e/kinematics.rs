@@ -114,6 +114,17 @@ const MOVE_WEIGHTS: [f64; 6] = [2.0, 2.0, 1.5, 1.0, 1.0, 0.5];
 const WRIST_SINGULAR: f64 = 1e-9;
 
 impl Ur5e {
+    /// The base frame and the frame after each joint (the last is the flange).
+    pub fn forward_frames(&self, q: &Joints) -> [Isometry3<f64>; 7] {
+        let mut frames = [Isometry3::identity(); 7];
+        let mut m = Matrix4::identity();
+        for i in 0..6 {
+            m *= self.dh.link(i, q[i]);
+            frames[i + 1] = to_isometry(&m);
+        }
+        frames
+    }
+
     /// `base_from_flange` for joint angles `q`.
     pub fn forward(&self, q: &Joints) -> Isometry3<f64> {
         let m = (0..6).fold(Matrix4::identity(), |acc, i| acc * self.dh.link(i, q[i]));

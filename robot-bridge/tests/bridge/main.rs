@@ -65,6 +65,7 @@ fn a_planned_pick_runs_to_its_last_waypoint() {
         ),
         width_m: 0.05,
         quality: 0.9,
+        object: None,
     };
     // Fast moves so the test is short; the default config is conservative.
     let config = PickConfig {
@@ -72,7 +73,7 @@ fn a_planned_pick_runs_to_its_last_waypoint() {
         tool_speed: 0.5,
         ..PickConfig::default()
     };
-    let plan = plan_pick(&Ur5e::default(), &config, &[grasp], &HOME).expect("plan");
+    let plan = plan_pick(&Ur5e::default(), &config, &[grasp], &[], &HOME).expect("plan");
     let Some(Step::MoveJ { joints: last, .. }) = plan.steps.last() else {
         panic!("ends with a joint move")
     };
@@ -181,6 +182,7 @@ mod executor {
             ),
             width_m: 0.05,
             quality: 0.9,
+            object: None,
         };
         let config = PickConfig {
             joint_speed: 3.0,
@@ -188,7 +190,7 @@ mod executor {
             ..PickConfig::default()
         };
         (
-            plan_pick(&Ur5e::default(), &config, &[grasp], &HOME).expect("plan"),
+            plan_pick(&Ur5e::default(), &config, &[grasp], &[], &HOME).expect("plan"),
             config,
         )
     }
