@@ -127,6 +127,34 @@ impl RtdeClient {
         Ok(client)
     }
 
+    /// [`Self::connect`], retried up to `attempts` times with a backoff that
+    /// starts at `first_backoff` and doubles (capped at 5 s): for a
+    /// controller that is restarting or dropped the link. The last error is
+    /// returned if every attempt fails; a refusal by the controller
+    /// (`Error::Controller`) is not retried.
+    pub fn connect_with_retry(
+        address: impl ToSocketAddrs + Copy,
+        frequency_hz: f64,
+        timeout: Duration,
+        attempts: usize,
+        first_backoff: Duration,
+    ) -> Result<Self> {
+        let mut backoff = first_backoff;
+        let mut last = Error::Io("no connection attempt made".to_owned());
+        for attempt in 0..attempts.max(1) {
+            if attempt > 0 {
+                std::thread::sleep(backoff);
+                backoff = (backoff * 2).min(Duration::from_secs(5));
+            }
+            match Self::connect(address, frequency_hz, timeout) {
+                Ok(client) => return Ok(client),
+                Err(e @ Error::Controller(_)) => return Err(e),
+                Err(e) => last = e,
+            }
+        }
+        Err(last)
+    }
+
     /// Sends a request and waits for the answer of the same type (text
     /// messages in between are skipped).
     fn request(&mut self, kind: u8, payload: &[u8]) -> Result<Vec<u8>> {

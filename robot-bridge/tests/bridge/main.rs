@@ -132,6 +132,43 @@ fn a_protective_stop_halts_motion_and_is_reported() {
 }
 
 #[test]
+fn reconnects_with_backoff_once_the_link_is_back() {
+    let emu = emulator();
+    emu.faults().drop_connections.store(true, Ordering::Relaxed);
+    std::thread::scope(|s| {
+        s.spawn(|| {
+            std::thread::sleep(Duration::from_millis(250));
+            emu.faults().drop_connections.store(false, Ordering::Relaxed);
+        });
+        let start = Instant::now();
+        let mut client = RtdeClient::connect_with_retry(
+            emu.rtde_address,
+            125.0,
+            Duration::from_millis(300),
+            8,
+            Duration::from_millis(50),
+        )
+        .expect("reconnected");
+        assert!(
+            start.elapsed() >= Duration::from_millis(200),
+            "it had to wait for the link"
+        );
+        client.next_state().expect("state");
+    });
+    // A controller refusal is not retried.
+    emu.faults().recipe_in_use.store(true, Ordering::Relaxed);
+    let start = Instant::now();
+    let err = RtdeClient::connect_with_retry(emu.rtde_address, 125.0, TIMEOUT, 5, Duration::from_millis(500))
+        .err()
+        .expect("refused");
+    assert!(matches!(err, Error::Controller(_)), "{err}");
+    assert!(
+        start.elapsed() < Duration::from_millis(500),
+        "no retry on a refusal"
+    );
+}
+
+#[test]
 fn recipe_in_use_and_dropped_connections_are_clear_errors() {
     let emu = emulator();
     emu.faults().recipe_in_use.store(true, Ordering::Relaxed);
