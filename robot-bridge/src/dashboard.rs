@@ -2,7 +2,7 @@
 //! Used only for recovery actions, and only when the bridge is configured to.
 
 use std::io::{BufRead, BufReader, Write};
-use std::net::{TcpStream, ToSocketAddrs};
+use std::net::ToSocketAddrs;
 use std::time::Duration;
 
 use crate::error::{Error, Result};
@@ -10,19 +10,7 @@ use crate::error::{Error, Result};
 /// Sends one dashboard command (e.g. `safetystatus`, `unlock protective stop`)
 /// and returns the controller's answer line.
 pub fn dashboard_command(address: impl ToSocketAddrs, command: &str, timeout: Duration) -> Result<String> {
-    let address = address
-        .to_socket_addrs()
-        .map_err(|e| Error::Io(format!("dashboard address: {e}")))?
-        .next()
-        .ok_or_else(|| Error::Io("dashboard address resolves to nothing".to_owned()))?;
-    let stream = TcpStream::connect_timeout(&address, timeout)
-        .map_err(|e| Error::Io(format!("dashboard connect {address}: {e}")))?;
-    stream
-        .set_read_timeout(Some(timeout))
-        .map_err(|e| Error::Io(e.to_string()))?;
-    stream
-        .set_write_timeout(Some(timeout))
-        .map_err(|e| Error::Io(e.to_string()))?;
+    let stream = crate::net::connect(address, timeout, "dashboard")?;
     let mut writer = stream.try_clone().map_err(|e| Error::Io(e.to_string()))?;
     let mut reader = BufReader::new(stream);
     let mut line = String::new();

@@ -41,19 +41,7 @@ pub struct Gripper {
 impl Gripper {
     /// Connects; every exchange times out after `timeout`.
     pub fn connect(address: impl ToSocketAddrs, max_width_m: f64, timeout: Duration) -> Result<Self> {
-        let address = address
-            .to_socket_addrs()
-            .map_err(|e| Error::Io(format!("gripper address: {e}")))?
-            .next()
-            .ok_or_else(|| Error::Io("gripper address resolves to nothing".to_owned()))?;
-        let stream = TcpStream::connect_timeout(&address, timeout)
-            .map_err(|e| Error::Io(format!("gripper connect {address}: {e}")))?;
-        stream
-            .set_read_timeout(Some(timeout))
-            .map_err(|e| Error::Io(e.to_string()))?;
-        stream
-            .set_write_timeout(Some(timeout))
-            .map_err(|e| Error::Io(e.to_string()))?;
+        let stream = crate::net::connect(address, timeout, "gripper")?;
         let writer = stream.try_clone().map_err(|e| Error::Io(e.to_string()))?;
         Ok(Self {
             reader: BufReader::new(stream),

@@ -22,6 +22,7 @@ pub mod emulate;
 mod error;
 pub mod execute;
 pub mod gripper;
+mod net;
 pub mod pick;
 pub mod rtde;
 pub mod script;

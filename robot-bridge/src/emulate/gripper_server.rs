@@ -1,8 +1,6 @@
 //! The emulator's Robotiq URCap socket (`SET`/`GET`, one line each).
 
-use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
-use std::time::Duration;
 
 use super::Shared;
 
@@ -77,59 +75,44 @@ impl GripperSim {
 
 /// Serves one client line by line.
 pub(super) fn serve(stream: TcpStream, shared: &Shared) {
-    let _ = stream.set_read_timeout(Some(Duration::from_millis(50)));
-    let Ok(mut writer) = stream.try_clone() else {
-        return;
-    };
-    let mut reader = BufReader::new(stream);
-    let mut line = String::new();
-    while !shared.should_close() {
-        line.clear();
-        match reader.read_line(&mut line) {
-            Ok(0) => return,
-            Ok(_) => {}
-            Err(_) => continue,
-        }
-        let words: Vec<&str> = line.split_whitespace().collect();
-        let reply = {
-            let mut g = shared.gripper();
-            match words.as_slice() {
-                ["SET", var, value] => match (*var, value.parse::<u32>()) {
-                    ("ACT", Ok(v)) => {
-                        g.activated = v == 1;
-                        "ack".to_owned()
-                    }
-                    ("POS", Ok(v)) => {
-                        g.request = v.min(255) as u8;
-                        "ack".to_owned()
-                    }
-                    ("SPE", Ok(v)) => {
-                        g.speed = v.min(255) as u8;
-                        "ack".to_owned()
-                    }
-                    ("FOR", Ok(v)) => {
-                        g.force = v.min(255) as u8;
-                        "ack".to_owned()
-                    }
-                    ("GTO", Ok(1)) if g.activated => {
-                        g.moving = true;
-                        g.obj = 0;
-                        "ack".to_owned()
-                    }
-                    ("GTO", Ok(_)) => "ack".to_owned(),
-                    _ => "?".to_owned(),
-                },
-                ["GET", "STA"] => format!("STA {}", if g.activated { 3 } else { 0 }),
-                ["GET", "POS"] => format!("POS {}", g.position.round() as u32),
-                ["GET", "PRE"] => format!("PRE {}", g.request),
-                ["GET", "OBJ"] => format!("OBJ {}", g.obj),
-                ["GET", "ACT"] => format!("ACT {}", u32::from(g.activated)),
-                ["GET", "FLT"] => "FLT 0".to_owned(),
-                _ => "?".to_owned(),
+    super::serve_lines(stream, shared, None, |line| answer(line, &mut shared.gripper()));
+}
+
+/// The answer to one request line.
+fn answer(line: &str, g: &mut GripperSim) -> String {
+    let words: Vec<&str> = line.split_whitespace().collect();
+    match words.as_slice() {
+        ["SET", var, value] => match (*var, value.parse::<u32>()) {
+            ("ACT", Ok(v)) => {
+                g.activated = v == 1;
+                "ack".to_owned()
             }
-        };
-        if writer.write_all(format!("{reply}\n").as_bytes()).is_err() {
-            return;
-        }
+            ("POS", Ok(v)) => {
+                g.request = v.min(255) as u8;
+                "ack".to_owned()
+            }
+            ("SPE", Ok(v)) => {
+                g.speed = v.min(255) as u8;
+                "ack".to_owned()
+            }
+            ("FOR", Ok(v)) => {
+                g.force = v.min(255) as u8;
+                "ack".to_owned()
+            }
+            ("GTO", Ok(1)) if g.activated => {
+                g.moving = true;
+                g.obj = 0;
+                "ack".to_owned()
+            }
+            ("GTO", Ok(_)) => "ack".to_owned(),
+            _ => "?".to_owned(),
+        },
+        ["GET", "STA"] => format!("STA {}", if g.activated { 3 } else { 0 }),
+        ["GET", "POS"] => format!("POS {}", g.position.round() as u32),
+        ["GET", "PRE"] => format!("PRE {}", g.request),
+        ["GET", "OBJ"] => format!("OBJ {}", g.obj),
+        ["GET", "ACT"] => format!("ACT {}", u32::from(g.activated)),
+        ["GET", "FLT"] => "FLT 0".to_owned(),
+        _ => "?".to_owned(),
     }
 }

@@ -238,6 +238,42 @@ fn spawn_servo(shared: Arc<Shared>) -> JoinHandle<()> {
     })
 }
 
+/// Serves a line protocol: an optional greeting, then one answer per line,
+/// until the client leaves, the emulator stops or connections drop.
+fn serve_lines(
+    stream: std::net::TcpStream,
+    shared: &Shared,
+    greeting: Option<&str>,
+    mut answer: impl FnMut(&str) -> String,
+) {
+    use std::io::{BufRead, BufReader, Write};
+    let _ = stream.set_read_timeout(Some(Duration::from_millis(50)));
+    let Ok(mut writer) = stream.try_clone() else {
+        return;
+    };
+    if let Some(greeting) = greeting
+        && writer.write_all(format!("{greeting}\n").as_bytes()).is_err()
+    {
+        return;
+    }
+    let mut reader = BufReader::new(stream);
+    let mut line = String::new();
+    while !shared.should_close() {
+        line.clear();
+        match reader.read_line(&mut line) {
+            Ok(0) => return,
+            Ok(_) => {}
+            Err(_) => continue, // a timeout: look at the stop flags again
+        }
+        if writer
+            .write_all(format!("{}\n", answer(line.trim())).as_bytes())
+            .is_err()
+        {
+            return;
+        }
+    }
+}
+
 /// Accepts connections until the emulator stops, one thread each.
 fn spawn_acceptor(
     listener: TcpListener,

@@ -64,20 +64,7 @@ impl RtdeClient {
     /// `frequency_hz` and starts the stream. Every read and write times out
     /// after `timeout`.
     pub fn connect(address: impl ToSocketAddrs, frequency_hz: f64, timeout: Duration) -> Result<Self> {
-        let address = address
-            .to_socket_addrs()
-            .map_err(|e| Error::Io(format!("RTDE address: {e}")))?
-            .next()
-            .ok_or_else(|| Error::Io("RTDE address resolves to nothing".to_owned()))?;
-        let stream = TcpStream::connect_timeout(&address, timeout)
-            .map_err(|e| Error::Io(format!("RTDE connect {address}: {e}")))?;
-        stream
-            .set_read_timeout(Some(timeout))
-            .map_err(|e| Error::Io(e.to_string()))?;
-        stream
-            .set_write_timeout(Some(timeout))
-            .map_err(|e| Error::Io(e.to_string()))?;
-        stream.set_nodelay(true).map_err(|e| Error::Io(e.to_string()))?;
+        let stream = crate::net::connect(address, timeout, "RTDE")?;
         let mut client = Self {
             stream,
             recipe_id: 0,
