@@ -16,8 +16,7 @@ use mvgrasp_core::segment::{euclidean_clusters, fit_table};
 use mvgrasp_core::select::view_entropy;
 use mvgrasp_core::sensor::{BlockMask, random_world_points, world_points_above};
 use mvgrasp_core::{
-    DepthEncoding, DepthFrame, GraspNet, MomentsNet, OrthoView, PlanOptions, Planner, PlannerConfig,
-    SceneInput, SensorInput, ViewAxis, Workspace,
+    GraspNet, MomentsNet, OrthoView, PlanOptions, Planner, PlannerConfig, SensorInput, ViewAxis, Workspace,
 };
 use nalgebra::{Point3, Vector3};
 
@@ -29,17 +28,10 @@ fn stages(c: &mut Criterion) {
     let table_scene = scene::grid_scene(0.0, 6, 3, 0.13);
     let camera = scene::Camera::orbit(Vector3::zeros(), 0.8, 50.0, -90.0);
     let bytes = scene::render(&table_scene, &camera).depth_bytes();
-    let input = SceneInput {
-        sensor: SensorInput::Depth(DepthFrame {
-            width: camera.width,
-            height: camera.height,
-            encoding: DepthEncoding::U16Millimetres,
-            data: &bytes,
-            intrinsics: camera.intrinsics,
-        }),
-        world_from_camera: camera.world_from_camera,
-        workspace: Workspace::new([-0.6, -0.4, -0.05], [0.6, 0.4, 0.4]).expect("workspace"),
-    };
+    let input = camera.scene_input(
+        &bytes,
+        Workspace::new([-0.6, -0.4, -0.05], [0.6, 0.4, 0.4]).expect("workspace"),
+    );
     let mut net = MomentsNet::default();
     let contract = net.contract().clone();
     let planner = Planner::new(PlannerConfig::default(), contract.clone()).expect("planner");

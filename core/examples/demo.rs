@@ -12,10 +12,7 @@
 use std::fs::File;
 use std::io::BufWriter;
 
-use mvgrasp_core::{
-    DepthEncoding, DepthFrame, GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig, SceneInput,
-    SensorInput, Workspace,
-};
+use mvgrasp_core::{GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig, Workspace};
 use nalgebra::{Point3, Vector3};
 
 #[path = "../tests/pipeline/scene.rs"]
@@ -89,17 +86,10 @@ fn main() {
     let camera = scene::Camera::orbit(Vector3::zeros(), 0.8, 50.0, -90.0);
     let rendered = scene::render(&table, &camera);
     let bytes = rendered.depth_bytes();
-    let input = SceneInput {
-        sensor: SensorInput::Depth(DepthFrame {
-            width: camera.width,
-            height: camera.height,
-            encoding: DepthEncoding::U16Millimetres,
-            data: &bytes,
-            intrinsics: camera.intrinsics,
-        }),
-        world_from_camera: camera.world_from_camera,
-        workspace: Workspace::new([-0.6, -0.4, -0.05], [0.6, 0.4, 0.4]).expect("workspace"),
-    };
+    let input = camera.scene_input(
+        &bytes,
+        Workspace::new([-0.6, -0.4, -0.05], [0.6, 0.4, 0.4]).expect("workspace"),
+    );
     let mut net = MomentsNet::default();
     let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).expect("planner");
     let options = PlanOptions {

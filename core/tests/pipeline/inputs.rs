@@ -138,17 +138,7 @@ fn empty_workspace_and_missing_table_are_reported() {
     let plan_on = |scene: &crate::scene::Scene, workspace: Workspace, net: &mut MomentsNet| {
         let camera = Camera::orbit(Vector3::zeros(), 0.8, 50.0, -90.0);
         let bytes = render(scene, &camera).depth_bytes();
-        let input = SceneInput {
-            sensor: SensorInput::Depth(DepthFrame {
-                width: camera.width,
-                height: camera.height,
-                encoding: DepthEncoding::U16Millimetres,
-                data: &bytes,
-                intrinsics: camera.intrinsics,
-            }),
-            world_from_camera: camera.world_from_camera,
-            workspace,
-        };
+        let input = camera.scene_input(&bytes, workspace);
         planner().plan(&input, &PlanOptions::default(), net)
     };
     let scene = grid_scene(0.0, 3, 3, 0.12);
@@ -274,17 +264,7 @@ fn tolerates_moderate_sensor_noise() {
             value.to_le_bytes()
         })
         .collect();
-    let input = SceneInput {
-        sensor: SensorInput::Depth(DepthFrame {
-            width: camera.width,
-            height: camera.height,
-            encoding: DepthEncoding::U16Millimetres,
-            data: &noisy,
-            intrinsics: camera.intrinsics,
-        }),
-        world_from_camera: camera.world_from_camera,
-        workspace: table_workspace(&scene),
-    };
+    let input = camera.scene_input(&noisy, table_workspace(&scene));
     let plan = planner()
         .plan(&input, &PlanOptions::default(), &mut MomentsNet::default())
         .expect("plan");

@@ -8,10 +8,7 @@ mod properties;
 mod scene;
 mod scenes;
 
-use mvgrasp_core::{
-    DepthEncoding, DepthFrame, GraspNet, MomentsNet, Plan, PlanOptions, Planner, PlannerConfig, SceneInput,
-    SensorInput, Workspace,
-};
+use mvgrasp_core::{GraspNet, MomentsNet, Plan, PlanOptions, Planner, PlannerConfig, Workspace};
 use scene::{Camera, Rendered, Scene};
 
 /// A workspace covering the table top up to 40 cm above it.
@@ -24,17 +21,7 @@ pub fn table_workspace(scene: &Scene) -> Workspace {
 pub fn plan_rendered(scene: &Scene, camera: &Camera, options: &PlanOptions) -> (Plan, Rendered) {
     let rendered = scene::render(scene, camera);
     let bytes = rendered.depth_bytes();
-    let input = SceneInput {
-        sensor: SensorInput::Depth(DepthFrame {
-            width: camera.width,
-            height: camera.height,
-            encoding: DepthEncoding::U16Millimetres,
-            data: &bytes,
-            intrinsics: camera.intrinsics,
-        }),
-        world_from_camera: camera.world_from_camera,
-        workspace: table_workspace(scene),
-    };
+    let input = camera.scene_input(&bytes, table_workspace(scene));
     let mut net = MomentsNet::default();
     let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).expect("planner");
     let plan = planner.plan(&input, options, &mut net).expect("plan");

@@ -6,7 +6,7 @@
 
 #![allow(dead_code)]
 
-use mvgrasp_core::Intrinsics;
+use mvgrasp_core::{DepthEncoding, DepthFrame, Intrinsics, SceneInput, SensorInput, Workspace};
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 /// A solid standing on (or lying on) the table.
@@ -183,6 +183,24 @@ impl Rendered {
     /// The depth as little-endian bytes, as the wire carries it.
     pub fn depth_bytes(&self) -> Vec<u8> {
         self.depth_mm.iter().flat_map(|d| d.to_le_bytes()).collect()
+    }
+}
+
+impl Camera {
+    /// A uint16-millimetre frame of this camera (`depth_bytes` as from
+    /// [`Rendered::depth_bytes`]) as the pipeline takes it.
+    pub fn scene_input<'a>(&self, depth_bytes: &'a [u8], workspace: Workspace) -> SceneInput<'a> {
+        SceneInput {
+            sensor: SensorInput::Depth(DepthFrame {
+                width: self.width,
+                height: self.height,
+                encoding: DepthEncoding::U16Millimetres,
+                data: depth_bytes,
+                intrinsics: self.intrinsics,
+            }),
+            world_from_camera: self.world_from_camera,
+            workspace,
+        }
     }
 }
 

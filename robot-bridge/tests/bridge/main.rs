@@ -36,6 +36,29 @@ fn wait_for(
     }
 }
 
+/// A top-down grasp in front of the robot, planned with fast moves so the
+/// tests are short (the default configuration is conservative).
+fn fast_pick_plan() -> (robot_bridge::pick::PickPlan, PickConfig) {
+    let grasp = GraspTarget {
+        world_from_grasp: Isometry3::from_parts(
+            Translation3::new(0.1, -0.45, 0.05),
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
+        ),
+        width_m: 0.05,
+        quality: 0.9,
+        object: None,
+    };
+    let config = PickConfig {
+        joint_speed: 3.0,
+        tool_speed: 0.5,
+        ..PickConfig::default()
+    };
+    (
+        plan_pick(&Ur5e::default(), &config, &[grasp], &[], &HOME).expect("plan"),
+        config,
+    )
+}
+
 #[test]
 fn rtde_streams_the_state() {
     let emu = emulator();
@@ -58,22 +81,7 @@ fn rtde_streams_the_state() {
 fn a_planned_pick_runs_to_its_last_waypoint() {
     let emu = emulator();
     let mut client = RtdeClient::connect(emu.rtde_address, 125.0, TIMEOUT).expect("connect");
-    let grasp = GraspTarget {
-        world_from_grasp: Isometry3::from_parts(
-            Translation3::new(0.1, -0.45, 0.05),
-            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
-        ),
-        width_m: 0.05,
-        quality: 0.9,
-        object: None,
-    };
-    // Fast moves so the test is short; the default config is conservative.
-    let config = PickConfig {
-        joint_speed: 3.0,
-        tool_speed: 0.5,
-        ..PickConfig::default()
-    };
-    let plan = plan_pick(&Ur5e::default(), &config, &[grasp], &[], &HOME).expect("plan");
+    let (plan, config) = fast_pick_plan();
     let Some(Step::MoveJ { joints: last, .. }) = plan.steps.last() else {
         panic!("ends with a joint move")
     };
@@ -211,33 +219,12 @@ mod executor {
         }
     }
 
-    fn plan() -> (robot_bridge::pick::PickPlan, PickConfig) {
-        let grasp = GraspTarget {
-            world_from_grasp: Isometry3::from_parts(
-                Translation3::new(0.1, -0.45, 0.05),
-                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
-            ),
-            width_m: 0.05,
-            quality: 0.9,
-            object: None,
-        };
-        let config = PickConfig {
-            joint_speed: 3.0,
-            tool_speed: 0.5,
-            ..PickConfig::default()
-        };
-        (
-            plan_pick(&Ur5e::default(), &config, &[grasp], &[], &HOME).expect("plan"),
-            config,
-        )
-    }
-
     #[test]
     fn a_pick_with_an_object_is_placed() {
         let emu = emulator();
         emu.set_object_width(Some(0.05));
         let mut c = controller(&emu);
-        let (plan, config) = plan();
+        let (plan, config) = fast_pick_plan();
         let outcome = execute_pick(&mut c, &plan, &config).expect("pick");
         let PickOutcome::Placed { held_width_m } = outcome else {
             panic!("{outcome:?}")
@@ -258,7 +245,7 @@ mod executor {
         let emu = emulator();
         emu.set_object_width(None);
         let mut c = controller(&emu);
-        let (plan, config) = plan();
+        let (plan, config) = fast_pick_plan();
         assert_eq!(
             execute_pick(&mut c, &plan, &config).expect("pick"),
             PickOutcome::NoObject
@@ -280,7 +267,7 @@ mod executor {
     fn a_protective_stop_mid_pick_ends_it_stopped() {
         let emu = emulator();
         let mut c = controller(&emu);
-        let (plan, config) = plan();
+        let (plan, config) = fast_pick_plan();
         std::thread::scope(|s| {
             s.spawn(|| {
                 std::thread::sleep(Duration::from_millis(150));
