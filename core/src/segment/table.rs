@@ -94,17 +94,15 @@ const MIN_ITERATIONS: usize = 16;
 /// Finds the table plane in `points` (world frame).
 pub fn fit_table(points: &[[f32; 3]], config: &TableConfig) -> Result<TablePlane> {
     let mut rng = SplitMix64::new(config.seed ^ points.len() as u64);
-    let draws = if points.is_empty() {
-        0
+    let to_f64 = |p: &[f32; 3]| Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+    // Few enough points (a random sample already): score them all.
+    let sample: Vec<Vector3<f64>> = if points.len() <= config.sample_points {
+        points.iter().map(to_f64).collect()
     } else {
-        config.sample_points
+        (0..config.sample_points)
+            .map(|_| to_f64(&points[rng.below(points.len())]))
+            .collect()
     };
-    let sample: Vec<Vector3<f64>> = (0..draws)
-        .map(|_| {
-            let p = points[rng.below(points.len())];
-            Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))
-        })
-        .collect();
     let required = ((sample.len() as f64 * config.min_support_fraction).ceil() as usize).max(3);
     let min_up = config.max_tilt_rad.cos();
     let mut best: Option<(usize, Vector3<f64>, f64)> = None;

@@ -113,7 +113,10 @@ pub fn world_points(
         input,
         world_from_camera,
         &Keep::new(workspace, None),
-        Sampling::Grid(1),
+        Sampling::Grid {
+            stride: 1,
+            pixels: false,
+        },
     )?;
     if cloud.valid == 0 {
         let (field, samples) = match input {
@@ -207,7 +210,10 @@ pub fn world_points_above(
     let keep = Keep::new(workspace, Some(above));
     let sampling = match near {
         Some(mask) => Sampling::Blocks(mask),
-        None => Sampling::Grid(1),
+        None => Sampling::Grid {
+            stride: 1,
+            pixels: false,
+        },
     };
     Ok(convert(input, world_from_camera, &keep, sampling)?.points)
 }
@@ -237,7 +243,12 @@ impl BlockMask {
     ) -> Result<Self> {
         let stride = stride.max(1);
         let keep = Keep::new(workspace, Some(above));
-        let sample = depth_to_world(frame, world_from_camera, &keep, Sampling::Grid(stride))?;
+        let sample = depth_to_world(
+            frame,
+            world_from_camera,
+            &keep,
+            Sampling::Grid { stride, pixels: true },
+        )?;
         let (w, h) = (frame.width as usize, frame.height as usize);
         let (bw, bh) = (w.div_ceil(stride), h.div_ceil(stride));
         let mut hit = vec![false; bw * bh];
@@ -273,8 +284,14 @@ impl BlockMask {
 /// Which pixels of a depth image (or points of a cloud) are converted.
 #[derive(Debug, Clone, Copy)]
 enum Sampling<'a> {
-    /// Every n-th row and column (every n^2-th point of a cloud).
-    Grid(usize),
+    /// Every `stride`-th row and column (every stride^2-th point of a
+    /// cloud); with `pixels`, each kept point's pixel is recorded too.
+    Grid {
+        /// Rows and columns skipped + 1.
+        stride: usize,
+        /// Record `WorldCloud::pixels`.
+        pixels: bool,
+    },
     /// Every pixel of the marked blocks (every point of a cloud).
     Blocks(&'a BlockMask),
 }
@@ -289,7 +306,7 @@ fn convert(
         SensorInput::Depth(frame) => depth_to_world(frame, world_from_camera, keep, sampling),
         SensorInput::Cloud(cloud) => {
             let step = match sampling {
-                Sampling::Grid(n) => n * n,
+                Sampling::Grid { stride, .. } => stride * stride,
                 Sampling::Blocks(_) => 1,
             };
             cloud_to_world(cloud, world_from_camera, keep, step)
@@ -377,12 +394,9 @@ fn depth_to_world(
     let rays = Rays::new(frame, world_from_camera, keep);
     let mut out = WorldCloud::default();
     match sampling {
-        Sampling::Grid(stride) => {
-            let samples = w.div_ceil(stride) * h.div_ceil(stride);
-            out.points.reserve(samples);
-            out.pixels.reserve(samples);
+        Sampling::Grid { stride, pixels } => {
             for v in (0..h).step_by(stride) {
-                rays.row(frame, keep, v, (0..w).step_by(stride), true, &mut out);
+                rays.row(frame, keep, v, (0..w).step_by(stride), pixels, &mut out);
             }
         }
         Sampling::Blocks(mask) => {
