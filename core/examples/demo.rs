@@ -4,8 +4,12 @@
 //! views with the chosen one framed and its grasp drawn.
 //!
 //! ```text
-//! cargo run --release -p mvgrasp-core --example demo -- [out.png]
+//! cargo run --release -p mvgrasp-core --example demo -- [out.png] [--save-scene DIR]
 //! ```
+//!
+//! `--save-scene DIR` also writes the frame as `DIR/depth.png` (16-bit
+//! millimetres) and `DIR/camera.json` (intrinsics, `world_from_camera`,
+//! workspace): the sample scene other tools read.
 
 #![allow(clippy::expect_used)] // a demo stops on a broken fixture
 
@@ -79,17 +83,26 @@ const CENTRE: [u8; 3] = [255, 220, 0];
 const CHOSEN: [u8; 3] = [64, 200, 255];
 
 fn main() {
-    let out = std::env::args()
-        .nth(1)
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let save_scene = args
+        .iter()
+        .position(|a| a == "--save-scene")
+        .and_then(|i| args.get(i + 1))
+        .cloned();
+    let out = args
+        .first()
+        .filter(|a| !a.starts_with("--"))
+        .cloned()
         .unwrap_or_else(|| "target/demo.png".to_owned());
     let table = scene::grid_scene(0.0, 6, 3, 0.13);
     let camera = scene::Camera::orbit(Vector3::zeros(), 0.8, 50.0, -90.0);
     let rendered = scene::render(&table, &camera);
     let bytes = rendered.depth_bytes();
-    let input = camera.scene_input(
-        &bytes,
-        Workspace::new([-0.6, -0.4, -0.05], [0.6, 0.4, 0.4]).expect("workspace"),
-    );
+    let workspace = Workspace::new([-0.6, -0.4, -0.05], [0.6, 0.4, 0.4]).expect("workspace");
+    let input = camera.scene_input(&bytes, workspace);
+    if let Some(dir) = &save_scene {
+        save_sample_scene(dir, &camera, &rendered.depth_mm, &workspace);
+    }
     let mut net = MomentsNet::default();
     let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).expect("planner");
     let options = PlanOptions {
@@ -239,6 +252,47 @@ fn main() {
     }
     canvas.save(&out);
     println!("wrote {out}");
+}
+
+/// Writes `depth.png` (16-bit grey, millimetres) and `camera.json`.
+fn save_sample_scene(dir: &str, camera: &scene::Camera, depth_mm: &[u16], workspace: &Workspace) {
+    std::fs::create_dir_all(dir).expect("scene folder");
+    let file = BufWriter::new(File::create(format!("{dir}/depth.png")).expect("depth.png"));
+    let mut encoder = png::Encoder::new(file, camera.width, camera.height);
+    encoder.set_color(png::ColorType::Grayscale);
+    encoder.set_depth(png::BitDepth::Sixteen);
+    let big_endian: Vec<u8> = depth_mm.iter().flat_map(|d| d.to_be_bytes()).collect(); // PNG is big-endian
+    encoder
+        .write_header()
+        .expect("PNG header")
+        .write_image_data(&big_endian)
+        .expect("PNG data");
+    let (k, pose) = (camera.intrinsics, camera.world_from_camera);
+    let (p, q) = (pose.translation.vector, pose.rotation);
+    let json = format!(
+        "{{\n  \"width\": {}, \"height\": {},\n  \"intrinsics\": {{ \"fx\": {}, \"fy\": {}, \"cx\": {}, \"cy\": {} }},\n  \"world_from_camera\": {{ \"position\": [{}, {}, {}], \"orientation\": [{}, {}, {}, {}] }},\n  \"workspace\": {{ \"min\": [{}, {}, {}], \"max\": [{}, {}, {}] }}\n}}\n",
+        camera.width,
+        camera.height,
+        k.fx,
+        k.fy,
+        k.cx,
+        k.cy,
+        p.x,
+        p.y,
+        p.z,
+        q.i,
+        q.j,
+        q.k,
+        q.w,
+        workspace.min.x,
+        workspace.min.y,
+        workspace.min.z,
+        workspace.max.x,
+        workspace.max.y,
+        workspace.max.z
+    );
+    std::fs::write(format!("{dir}/camera.json"), json).expect("camera.json");
+    println!("wrote {dir}/depth.png and {dir}/camera.json");
 }
 
 fn ms(d: std::time::Duration) -> f64 {

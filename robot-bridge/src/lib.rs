@@ -22,6 +22,7 @@ pub mod emulate;
 mod error;
 pub mod execute;
 pub mod gripper;
+pub mod local_planner;
 mod net;
 pub mod pick;
 pub mod rtde;

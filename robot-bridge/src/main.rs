@@ -6,7 +6,7 @@ use anyhow::{Context, bail};
 use clap::{Parser, Subcommand};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use robot_bridge::emulate::{Emulator, EmulatorPorts};
-use robot_bridge::pick::{GraspTarget, PickConfig, plan_pick, urscript};
+use robot_bridge::pick::{GraspTarget, PickConfig, Step, plan_pick, urscript};
 use robot_bridge::ur5e::Ur5e;
 
 /// UR's usual home: upper arm up, forearm level, tool pointing down.
@@ -51,6 +51,29 @@ enum Command {
         /// Current joints (rad).
         #[arg(long, num_args = 6, allow_negative_numbers = true, default_values_t = HOME)]
         current: Vec<f64>,
+    },
+    /// Plan grasps on a depth frame + camera file (in-process baseline planner
+    /// until the gRPC planner exists), choose a feasible pick and run it on
+    /// the controller, printing each step; `--dry-run` prints the URScript only.
+    Pick {
+        /// 16-bit depth PNG (millimetres).
+        #[arg(long)]
+        depth: std::path::PathBuf,
+        /// Camera JSON (intrinsics, world_from_camera, workspace).
+        #[arg(long)]
+        camera: std::path::PathBuf,
+        /// Controller host (standard ports 30004, 30002, 63352).
+        #[arg(long, default_value = "127.0.0.1")]
+        robot: String,
+        /// Robot base position in the world (m).
+        #[arg(long, num_args = 3, allow_negative_numbers = true, default_values_t = [0.0, 0.5, 0.0])]
+        base_position: Vec<f64>,
+        /// TCP position over the basket, world (m).
+        #[arg(long, num_args = 3, allow_negative_numbers = true, default_values_t = [0.45, 0.45, 0.3])]
+        basket: Vec<f64>,
+        /// Print the URScript instead of moving the robot.
+        #[arg(long)]
+        dry_run: bool,
     },
     /// Run the controller emulator (RTDE + script receiver) until interrupted.
     Emulate {
@@ -127,6 +150,16 @@ fn main() -> anyhow::Result<()> {
             let plan = plan_pick(&arm, &config, &[grasp], &[], &current).context("no feasible pick")?;
             print!("{}", urscript(&plan, &config));
         }
+        Command::Pick {
+            depth,
+            camera,
+            robot,
+            base_position,
+            basket,
+            dry_run,
+        } => {
+            pick(&arm, &depth, &camera, &robot, &base_position, &basket, dry_run)?;
+        }
         Command::Emulate {
             host,
             rtde_port,
@@ -165,6 +198,102 @@ fn main() -> anyhow::Result<()> {
             );
         }
     }
+    Ok(())
+}
+
+fn pick(
+    arm: &Ur5e,
+    depth: &std::path::Path,
+    camera: &std::path::Path,
+    robot: &str,
+    base_position: &[f64],
+    basket: &[f64],
+    dry_run: bool,
+) -> anyhow::Result<()> {
+    use robot_bridge::execute::{Controller, execute_pick};
+    use robot_bridge::gripper::Gripper;
+    use robot_bridge::local_planner::{load_scene, plan_locally};
+    use robot_bridge::rtde::RtdeClient;
+
+    let scene = load_scene(depth, camera)?;
+    let planned = plan_locally(&scene, 10)?;
+    println!(
+        "planner (in-process baseline): {} objects, {} grasps",
+        planned.objects.len(),
+        planned.grasps.len()
+    );
+    let config = PickConfig {
+        world_from_base: Isometry3::translation(base_position[0], base_position[1], base_position[2]),
+        world_from_drop: Isometry3::from_parts(
+            Translation3::new(basket[0], basket[1], basket[2]),
+            UnitQuaternion::from_axis_angle(&nalgebra::Vector3::x_axis(), std::f64::consts::PI),
+        ),
+        obstacles: vec![planned.table.clone()],
+        ..PickConfig::default()
+    };
+    let timeout = std::time::Duration::from_secs(2);
+    let mut rtde = if dry_run {
+        None
+    } else {
+        Some(RtdeClient::connect_with_retry(
+            (robot, 30004),
+            125.0,
+            timeout,
+            3,
+            timeout / 4,
+        )?)
+    };
+    let current = match rtde.as_mut() {
+        Some(client) => client.next_state()?.actual_q,
+        None => HOME,
+    };
+    let plan =
+        plan_pick(arm, &config, &planned.grasps, &planned.objects, &current).context("no feasible pick")?;
+    let grasp = &planned.grasps[plan.grasp_index];
+    let p = grasp.world_from_grasp.translation.vector;
+    println!(
+        "picking grasp {} (quality {:.2}, width {:.0} mm) at ({:.3}, {:.3}, {:.3}) m:",
+        plan.grasp_index + 1,
+        grasp.quality,
+        grasp.width_m * 1000.0,
+        p.x,
+        p.y,
+        p.z
+    );
+    for step in &plan.steps {
+        match step {
+            Step::MoveJ { name, joints } => println!("  movej  {name:<16} {}", format_joints(joints)),
+            Step::MoveL { name, joints, .. } => println!("  movel  {name:<16} {}", format_joints(joints)),
+            Step::Gripper { name, close, width_m } => {
+                println!(
+                    "  grip   {name:<16} {}",
+                    if *close {
+                        "close".to_owned()
+                    } else {
+                        format!("open {:.0} mm", width_m * 1000.0)
+                    }
+                )
+            }
+        }
+    }
+    let Some(rtde) = rtde else {
+        print!("{}", urscript(&plan, &config));
+        return Ok(());
+    };
+    let mut gripper = Gripper::connect((robot, 63352), 0.14, timeout)?;
+    gripper.activate()?;
+    let script_address = std::net::ToSocketAddrs::to_socket_addrs(&(robot, 30002))?
+        .next()
+        .context("the robot address resolves to nothing")?;
+    let mut controller = Controller {
+        rtde,
+        script_address,
+        gripper,
+        io_timeout: timeout,
+        motion_timeout: std::time::Duration::from_secs(60),
+    };
+    let outcome = execute_pick(&mut controller, &plan, &config)?;
+    println!("outcome: {outcome:?}");
     Ok(())
 }
 

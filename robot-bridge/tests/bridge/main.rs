@@ -296,3 +296,94 @@ mod executor {
         assert_eq!(status, "Safetystatus: NORMAL");
     }
 }
+
+mod from_files {
+    use super::*;
+    use robot_bridge::execute::{Controller, PickOutcome, execute_pick};
+    use robot_bridge::gripper::Gripper;
+    use robot_bridge::local_planner::{load_scene, plan_locally};
+
+    fn sample(file: &str) -> std::path::PathBuf {
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../samples/table6")
+            .join(file)
+    }
+
+    /// The committed sample frame -> in-process planner -> collision-checked
+    /// pick -> run on the emulator: the object is placed.
+    #[test]
+    fn the_sample_scene_is_picked_end_to_end() {
+        let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
+        assert_eq!((scene.width, scene.height), (640, 480));
+        let planned = plan_locally(&scene, 10).expect("planned");
+        assert_eq!(planned.objects.len(), 6);
+        assert!(!planned.grasps.is_empty());
+        let config = PickConfig {
+            world_from_base: Isometry3::translation(0.0, 0.5, 0.0),
+            world_from_drop: Isometry3::from_parts(
+                Translation3::new(0.45, 0.45, 0.3),
+                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
+            ),
+            obstacles: vec![planned.table.clone()],
+            joint_speed: 3.0,
+            tool_speed: 0.5,
+            ..PickConfig::default()
+        };
+        let plan = plan_pick(
+            &Ur5e::default(),
+            &config,
+            &planned.grasps,
+            &planned.objects,
+            &HOME,
+        )
+        .expect("plan");
+        let emu = emulator();
+        let mut gripper = Gripper::connect(emu.gripper_address, 0.14, TIMEOUT).expect("gripper");
+        gripper.activate().expect("activate");
+        let mut controller = Controller {
+            rtde: RtdeClient::connect(emu.rtde_address, 125.0, TIMEOUT).expect("rtde"),
+            script_address: emu.script_address,
+            gripper,
+            io_timeout: TIMEOUT,
+            motion_timeout: Duration::from_secs(10),
+        };
+        let outcome = execute_pick(&mut controller, &plan, &config).expect("pick");
+        assert!(matches!(outcome, PickOutcome::Placed { .. }), "{outcome:?}");
+    }
+
+    #[test]
+    fn missing_or_bad_files_name_the_problem() {
+        let err = load_scene(&sample("nope.png"), &sample("camera.json")).expect_err("missing");
+        assert!(
+            err.to_string().contains("depth_png") && err.to_string().contains("nope.png"),
+            "{err}"
+        );
+        let dir = std::env::temp_dir().join(format!("rb-bad-camera-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let bad = dir.join("camera.json");
+        std::fs::write(&bad, r#"{"intrinsics": {"fx": 600, "fy": 600, "cx": 320}}"#).expect("write");
+        let err = load_scene(&sample("depth.png"), &bad).expect_err("bad camera");
+        assert!(err.to_string().contains("intrinsics.cy"), "{err}");
+    }
+
+    #[test]
+    fn the_cli_dry_run_prints_a_script() {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_robot-bridge"))
+            .args(["pick", "--dry-run", "--depth"])
+            .arg(sample("depth.png"))
+            .arg("--camera")
+            .arg(sample("camera.json"))
+            .output()
+            .expect("run the CLI");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{stdout}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            stdout.contains("6 objects") && stdout.contains("def mvgrasp_pick():"),
+            "{stdout}"
+        );
+    }
+}
