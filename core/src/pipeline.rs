@@ -115,9 +115,9 @@ pub struct StageTimings {
     pub cluster: Duration,
     /// Object frames.
     pub frames: Duration,
-    /// View rendering.
+    /// View rendering, with each view's entropy.
     pub views: Duration,
-    /// Entropy and view selection.
+    /// View selection and batching (the entropy is summed during `views`).
     pub select: Duration,
     /// The network (as measured by whoever ran it).
     pub inference: Duration,
