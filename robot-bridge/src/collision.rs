@@ -12,7 +12,7 @@ use parry3d::math::{Pose, Rotation, Vector};
 use parry3d::query::intersection_test;
 use parry3d::shape::{Capsule, Cuboid};
 
-use crate::ur5e::{Joints, Ur5e};
+use crate::ur5e::{Joints, Ur5e, max_joint_move};
 use mvgrasp_core::rng::SplitMix64;
 
 /// A box in the world.
@@ -130,7 +130,7 @@ impl CollisionWorld {
 
     /// True when the straight joint-space segment is free, checked every `step_rad`.
     pub fn segment_free(&self, arm: &Ur5e, from: &Joints, to: &Joints, step_rad: f64) -> bool {
-        let largest = (0..6).fold(0.0f64, |m, i| m.max((to[i] - from[i]).abs()));
+        let largest = max_joint_move(from, to);
         let steps = ((largest / step_rad).ceil() as usize).max(1);
         (0..=steps).all(|k| {
             let t = k as f64 / steps as f64;
@@ -175,7 +175,7 @@ impl CollisionWorld {
             // Connect: grow the other tree towards the new node until blocked or joined.
             let target = trees[a][new_a].0;
             while let Some(new_b) = extend(self, arm, &mut trees[b], &target, EXTEND, STEP) {
-                if distance(&trees[b][new_b].0, &target) < 1e-9 {
+                if max_joint_move(&trees[b][new_b].0, &target) < 1e-9 {
                     // root_a .. new_a, then (new_b is the same configuration) .. root_b.
                     let mut path = branch(&trees[a], new_a);
                     path.reverse();
@@ -206,10 +206,6 @@ impl CollisionWorld {
     }
 }
 
-fn distance(a: &Joints, b: &Joints) -> f64 {
-    (0..6).fold(0.0f64, |m, i| m.max((a[i] - b[i]).abs()))
-}
-
 /// Grows `tree` from its nearest node towards `target` by at most `step`;
 /// the new node's index, or `None` if that segment collides.
 fn extend(
@@ -223,10 +219,10 @@ fn extend(
     let (nearest, _) = tree
         .iter()
         .enumerate()
-        .map(|(i, (q, _))| (i, distance(q, target)))
+        .map(|(i, (q, _))| (i, max_joint_move(q, target)))
         .min_by(|x, y| x.1.total_cmp(&y.1))?;
     let from = tree[nearest].0;
-    let d = distance(&from, target);
+    let d = max_joint_move(&from, target);
     let t = if d > step { step / d } else { 1.0 };
     let new: Joints = std::array::from_fn(|i| from[i] + t * (target[i] - from[i]));
     if !world.segment_free(arm, &from, &new, check) {

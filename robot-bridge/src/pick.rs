@@ -20,7 +20,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 use crate::collision::{ArmModel, BoxObstacle, CollisionWorld};
 use crate::error::{Error, Result};
-use crate::ur5e::{Joints, Ur5e, check_joints, check_pose};
+use crate::ur5e::{Joints, Ur5e, check_joints, check_pose, max_joint_move};
 
 /// A grasp to execute (from the planner).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -210,7 +210,7 @@ pub fn plan_pick_multi(
                         Step::MoveJ { joints, .. } => Some(*joints),
                         _ => None,
                     });
-                    let cost = first.map_or(f64::INFINITY, |q| joint_distance(&cell.current, &q));
+                    let cost = first.map_or(f64::INFINITY, |q| max_joint_move(&cell.current, &q));
                     if best.as_ref().is_none_or(|(c, _, _)| cost < *c) {
                         best = Some((cost, a, plan));
                     }
@@ -305,7 +305,7 @@ fn plan_one(
                 arm.inverse_nearest(&flange_for(&drop), &q_lift).ok()
             })
             .filter(|q| world.collision(arm, q).is_none())
-            .min_by(|a, b| joint_distance(&q_lift, a).total_cmp(&joint_distance(&q_lift, b)))
+            .min_by(|a, b| max_joint_move(&q_lift, a).total_cmp(&max_joint_move(&q_lift, b)))
         else {
             reason = "no collision-free pose over the basket".to_owned();
             continue;
@@ -330,7 +330,7 @@ fn plan_one(
                 })
                 .collect()
         };
-        let cost = joint_distance(current, &q_pre);
+        let cost = max_joint_move(current, &q_pre);
         let mut steps = vec![Step::Gripper {
             name: "open before approach",
             close: false,
@@ -404,10 +404,6 @@ fn linear(
         q = next;
     }
     Ok(q)
-}
-
-fn joint_distance(a: &Joints, b: &Joints) -> f64 {
-    (0..6).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max)
 }
 
 /// The arm's part of a pick as a URScript program (gripper steps become
@@ -527,7 +523,7 @@ mod tests {
         else {
             panic!("lift then basket")
         };
-        assert!(joint_distance(q_lift, q_drop) < 1.0, "{q_lift:?} -> {q_drop:?}");
+        assert!(max_joint_move(q_lift, q_drop) < 1.0, "{q_lift:?} -> {q_drop:?}");
         let script = urscript(&plan, &config);
         assert!(script.starts_with("def mvgrasp_pick():\n  set_tcp(p[0.000000, 0.000000, 0.233000"));
         assert_eq!(script.matches("movej(").count(), 3);

@@ -177,23 +177,15 @@ pub fn random_world_points(
         }
         SensorInput::Cloud(cloud) => {
             let count = check_cloud(cloud)?;
-            let transform = match cloud.frame {
-                CloudFrame::Camera => world_from_camera.cast::<f32>(),
-                CloudFrame::World => Isometry3::identity(),
-            };
+            let transform = cloud_transform(cloud, world_from_camera);
             for _ in 0..4 * n {
                 if out.points.len() >= n || count == 0 {
                     break;
                 }
-                let b = &cloud.xyz[12 * rng.below(count)..][..12];
-                let f = |i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
-                let p = [f(0), f(4), f(8)];
-                if p.iter().all(|c| c.is_finite()) {
+                if let Some(p) = cloud_point(&cloud.xyz[12 * rng.below(count)..][..12], &transform) {
                     out.valid += 1;
-                    let q = transform * Point3::from(p);
-                    let q = [q.x, q.y, q.z];
-                    if keep.inside(&q) {
-                        out.points.push(q);
+                    if keep.inside(&p) {
+                        out.points.push(p);
                     }
                 }
             }
@@ -555,28 +547,39 @@ fn cloud_to_world(
     step: usize,
 ) -> Result<WorldCloud> {
     let n = check_cloud(cloud)?;
-    let transform = match cloud.frame {
-        CloudFrame::Camera => world_from_camera.cast::<f32>(),
-        CloudFrame::World => Isometry3::identity(),
-    };
+    let transform = cloud_transform(cloud, world_from_camera);
     let mut out = WorldCloud {
         points: Vec::with_capacity(n / step),
         ..WorldCloud::default()
     };
     for b in cloud.xyz.chunks_exact(12).step_by(step) {
-        let f = |i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
-        let p = [f(0), f(4), f(8)];
-        if p.iter().any(|c| !c.is_finite()) {
-            continue;
-        }
-        out.valid += 1;
-        let q = transform * Point3::from(p);
-        let p = [q.x, q.y, q.z];
-        if keep.test(&p) {
-            out.points.push(p);
+        if let Some(p) = cloud_point(b, &transform) {
+            out.valid += 1;
+            if keep.test(&p) {
+                out.points.push(p);
+            }
         }
     }
     Ok(out)
+}
+
+/// Maps the cloud's points to the world.
+fn cloud_transform(cloud: &PointCloud<'_>, world_from_camera: &Isometry3<f64>) -> Isometry3<f32> {
+    match cloud.frame {
+        CloudFrame::Camera => world_from_camera.cast::<f32>(),
+        CloudFrame::World => Isometry3::identity(),
+    }
+}
+
+/// One little-endian float32 triple (12 bytes) in the world; `None` if not finite.
+fn cloud_point(bytes: &[u8], transform: &Isometry3<f32>) -> Option<[f32; 3]> {
+    let f = |i: usize| f32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
+    let p = [f(0), f(4), f(8)];
+    if p.iter().any(|c| !c.is_finite()) {
+        return None;
+    }
+    let q = transform * Point3::from(p);
+    Some([q.x, q.y, q.z])
 }
 
 #[cfg(test)]

@@ -52,7 +52,7 @@ pub(super) fn serve(mut stream: TcpStream, shared: &Shared) {
             // Joint speed that covers the TCP distance at the commanded tool speed.
             let from = robot.arm.forward(&last) * robot.flange_from_tcp;
             let distance = (from.translation.vector - base_from_tcp.translation.vector).norm();
-            let largest = (0..6).fold(0.0f64, |m, i| m.max((target[i] - last[i]).abs()));
+            let largest = crate::ur5e::max_joint_move(&target, &last);
             let seconds = (distance / speed.max(1e-3)).max(1e-3);
             robot.motions.push_back(Motion {
                 target,

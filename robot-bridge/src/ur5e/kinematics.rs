@@ -241,6 +241,11 @@ impl Ur5e {
     }
 }
 
+/// The largest single-joint difference between two joint vectors (rad).
+pub fn max_joint_move(a: &Joints, b: &Joints) -> f64 {
+    (0..6).fold(0.0f64, |m, i| m.max((a[i] - b[i]).abs()))
+}
+
 /// An angle wrapped into (-pi, pi].
 fn wrap(q: f64) -> f64 {
     let w = q.rem_euclid(TAU);

@@ -2,4 +2,4 @@
 
 mod kinematics;
 
-pub use kinematics::{DhParams, JointLimits, Joints, Ur5e, check_joints, check_pose};
+pub use kinematics::{DhParams, JointLimits, Joints, Ur5e, check_joints, check_pose, max_joint_move};
