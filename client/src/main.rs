@@ -1,0 +1,354 @@
+//! `mvgrasp`: plan grasps on a running planner, benchmark it, ask what it runs.
+
+use std::{path::PathBuf, time::Duration};
+
+use anyhow::{Context, bail};
+use clap::{Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use mvgrasp_client::{
+    PlannerClient,
+    bench::{self, BenchConfig},
+    pb,
+    scene::SceneFiles,
+    viz,
+};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+
+/// Client of the mvgrasp grasp planner.
+#[derive(Debug, Parser)]
+#[command(version, about)]
+struct Cli {
+    /// The planner's address.
+    #[arg(
+        long,
+        global = true,
+        env = "MVGRASP_SERVER",
+        default_value = "http://127.0.0.1:50051"
+    )]
+    server: String,
+    /// Deadline per call (ms).
+    #[arg(long, global = true)]
+    timeout_ms: Option<u64>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum Policy {
+    Entropy,
+    All,
+    TopDown,
+    Random,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum Frame {
+    Camera,
+    World,
+}
+
+#[derive(Debug, clap::Args)]
+struct SceneArgs {
+    /// A 16-bit depth PNG (millimetres).
+    #[arg(long, conflicts_with = "cloud")]
+    depth: Option<PathBuf>,
+    /// A PLY or PCD cloud.
+    #[arg(long)]
+    cloud: Option<PathBuf>,
+    /// The frame the cloud's points are in.
+    #[arg(long, value_enum, default_value = "camera")]
+    cloud_frame: Frame,
+    /// Camera JSON: intrinsics, world_from_camera, workspace.
+    #[arg(long)]
+    camera: PathBuf,
+    /// Most grasps (0: the server's default).
+    #[arg(long, default_value_t = 0)]
+    max_grasps: u32,
+    /// Drop grasps under this quality (tau; default: the server's).
+    #[arg(long)]
+    min_quality: Option<f32>,
+    /// Which views go through the network.
+    #[arg(long, value_enum, default_value = "entropy")]
+    policy: Policy,
+    /// Seed of `--policy random`.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+impl SceneArgs {
+    fn load(&self) -> anyhow::Result<SceneFiles> {
+        Ok(match (&self.depth, &self.cloud) {
+            (Some(depth), None) => SceneFiles::load_depth(depth, &self.camera)?,
+            (None, Some(cloud)) => {
+                let frame = match self.cloud_frame {
+                    Frame::Camera => pb::CloudFrame::Camera,
+                    Frame::World => pb::CloudFrame::World,
+                };
+                SceneFiles::load_cloud(cloud, frame, &self.camera)?
+            }
+            _ => bail!("give --depth or --cloud"),
+        })
+    }
+
+    fn request(&self, scene: &SceneFiles) -> pb::PlanGraspsRequest {
+        let policy = match self.policy {
+            Policy::Entropy => pb::ViewPolicy::Entropy,
+            Policy::All => pb::ViewPolicy::All,
+            Policy::TopDown => pb::ViewPolicy::TopDown,
+            Policy::Random => pb::ViewPolicy::Random,
+        };
+        pb::PlanGraspsRequest {
+            max_grasps: self.max_grasps,
+            min_quality: self.min_quality,
+            view_policy: policy as i32,
+            random_seed: self.seed,
+            ..scene.request()
+        }
+    }
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Plan grasps for one frame and print them ranked.
+    Plan {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Print the whole response as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Draw the grasps over the depth image and the views into this PNG.
+        #[arg(long)]
+        viz: Option<PathBuf>,
+    },
+    /// Load the server with one frame: latency percentiles and throughput.
+    Bench {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Concurrent callers.
+        #[arg(long, default_value_t = 1)]
+        concurrency: usize,
+        /// Seconds to run (default 10 unless --count is given).
+        #[arg(long)]
+        duration_s: Option<f64>,
+        /// Calls to make.
+        #[arg(long)]
+        count: Option<usize>,
+        /// Total calls per second (default: as fast as answers come).
+        #[arg(long)]
+        rate: Option<f64>,
+        /// Unmeasured calls first.
+        #[arg(long, default_value_t = 5)]
+        warmup: usize,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// The model and backend the server runs.
+    Info,
+    /// The planner's gRPC health status (exit code 1 unless SERVING).
+    Health,
+}
+
+fn json_of_grasp(g: &pb::Grasp) -> serde_json::Value {
+    let pose = g.pose.unwrap_or_default();
+    let p = pose.position.unwrap_or_default();
+    let q = pose.orientation.unwrap_or_default();
+    serde_json::json!({
+        "object_id": g.object_id, "quality": g.quality, "width_m": g.width_m,
+        "view": pb::ViewAxis::try_from(g.view).map_or("unknown", |v| v.as_str_name()),
+        "pixel": [g.pixel_u, g.pixel_v], "angle_rad": g.angle_rad,
+        "position": [p.x, p.y, p.z], "orientation_xyzw": [q.x, q.y, q.z, q.w],
+    })
+}
+
+fn json_of_response(r: &pb::PlanGraspsResponse) -> serde_json::Value {
+    let t = r.timings.unwrap_or_default();
+    serde_json::json!({
+        "request_id": r.request_id,
+        "model_version": r.model_version,
+        "grasps": r.grasps.iter().map(json_of_grasp).collect::<Vec<_>>(),
+        "objects": r.objects.iter().map(|o| {
+            let c = o.world_from_object.unwrap_or_default().position.unwrap_or_default();
+            serde_json::json!({
+                "id": o.id, "centroid": [c.x, c.y, c.z], "point_count": o.point_count,
+                "views": o.views.iter().map(|v| serde_json::json!({
+                    "axis": pb::ViewAxis::try_from(v.axis).map_or("unknown", |a| a.as_str_name()),
+                    "entropy": v.entropy, "inferred": v.inferred,
+                })).collect::<Vec<_>>(),
+            })
+        }).collect::<Vec<_>>(),
+        "timings_ms": {
+            "sensor": t.sensor_ms, "table": t.table_ms, "objects": t.objects_ms, "cluster": t.cluster_ms,
+            "frames": t.frames_ms, "views": t.views_ms, "select": t.select_ms,
+            "inference": t.inference_ms, "decode": t.decode_ms, "total": t.total_ms,
+        },
+    })
+}
+
+fn print_table(r: &pb::PlanGraspsResponse) {
+    println!(
+        "{} objects, {} grasps (model {})",
+        r.objects.len(),
+        r.grasps.len(),
+        r.model_version
+    );
+    println!("rank  object  view   quality  width_mm        x        y        z   approach");
+    for (rank, g) in r.grasps.iter().enumerate() {
+        let pose = g.pose.unwrap_or_default();
+        let p = pose.position.unwrap_or_default();
+        let q = pose.orientation.unwrap_or_default();
+        let rotation = UnitQuaternion::from_quaternion(Quaternion::new(q.w, q.x, q.y, q.z));
+        let a = rotation * Vector3::z();
+        let view = pb::ViewAxis::try_from(g.view).map_or("?", |v| match v {
+            pb::ViewAxis::Top => "top",
+            pb::ViewAxis::Front => "front",
+            pb::ViewAxis::Side => "side",
+            pb::ViewAxis::Unspecified => "?",
+        });
+        println!(
+            "{:>4}  {:>6}  {:<5}  {:>7.3}  {:>8.1}  {:>7.3}  {:>7.3}  {:>7.3}   ({:+.2}, {:+.2}, {:+.2})",
+            rank + 1,
+            g.object_id,
+            view,
+            g.quality,
+            g.width_m * 1e3,
+            p.x,
+            p.y,
+            p.z,
+            a.x,
+            a.y,
+            a.z
+        );
+    }
+    if let Some(t) = r.timings {
+        println!(
+            "server: {:.2} ms (inference incl. batching {:.2} ms, other stages {:.2} ms)",
+            t.total_ms,
+            t.inference_ms,
+            t.sensor_ms
+                + t.table_ms
+                + t.objects_ms
+                + t.cluster_ms
+                + t.frames_ms
+                + t.views_ms
+                + t.select_ms
+                + t.decode_ms
+        );
+    }
+}
+
+#[tokio::main]
+async fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    let mut client = PlannerClient::connect(&cli.server).await?;
+    if let Some(ms) = cli.timeout_ms {
+        client = client.with_timeout(Duration::from_millis(ms));
+    }
+    match cli.command {
+        Command::Plan { scene, json, viz } => {
+            let files = scene.load()?;
+            let mut request = scene.request(&files);
+            request.include_debug_views = viz.is_some();
+            let response = client.plan(request).await?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&json_of_response(&response))?);
+            } else {
+                print_table(&response);
+            }
+            if let Some(path) = viz {
+                viz::draw(&files, &response)?.save(&path)?;
+                eprintln!("wrote {}", path.display());
+            }
+        }
+        Command::Bench {
+            scene,
+            concurrency,
+            duration_s,
+            count,
+            rate,
+            warmup,
+            json,
+        } => {
+            let files = scene.load()?;
+            let request = scene.request(&files);
+            let duration = match (duration_s, count) {
+                (None, None) => Some(Duration::from_secs(10)),
+                (d, _) => d.map(Duration::from_secs_f64),
+            };
+            let bar = if let Some(n) = count {
+                ProgressBar::new(n as u64)
+            } else {
+                ProgressBar::new_spinner()
+            };
+            bar.set_style(
+                ProgressStyle::with_template(
+                    "{spinner} [{elapsed_precise}] {bar:30} {pos} calls ({per_sec})",
+                )
+                .context("progress style")?,
+            );
+            let config = BenchConfig {
+                concurrency,
+                duration,
+                count,
+                rate,
+                warmup,
+            };
+            let report = bench::run(&client, &request, &config, Some(bar.clone())).await?;
+            bar.finish_and_clear();
+            if json {
+                println!(
+                    "{}",
+                    serde_json::json!({
+                        "concurrency": report.concurrency, "ok": report.ok, "errors": report.errors,
+                        "elapsed_s": report.elapsed_s, "throughput_per_s": report.throughput_per_s,
+                        "p50_ms": report.p50_ms, "p90_ms": report.p90_ms, "p99_ms": report.p99_ms,
+                        "max_ms": report.max_ms, "server_p50_ms": report.server_p50_ms,
+                        "mean_grasps": report.mean_grasps, "first_error": report.first_error,
+                    })
+                );
+            } else {
+                println!(
+                    "concurrency {}: {} ok, {} errors in {:.1} s -> {:.1} calls/s; latency p50 {:.2} ms, p90 {:.2} ms, p99 {:.2} ms, max {:.2} ms; server p50 {:.2} ms; {:.1} grasps/answer",
+                    report.concurrency,
+                    report.ok,
+                    report.errors,
+                    report.elapsed_s,
+                    report.throughput_per_s,
+                    report.p50_ms,
+                    report.p90_ms,
+                    report.p99_ms,
+                    report.max_ms,
+                    report.server_p50_ms,
+                    report.mean_grasps
+                );
+            }
+            if let Some(e) = report.first_error {
+                eprintln!("first error: {e}");
+            }
+        }
+        Command::Info => {
+            let info = client.model_info().await?;
+            println!(
+                "model {} (data {}), backend {}, input {} px of {} mm, width scale {} m, outputs [{}], normalisation {}, max batch {} views, server {}",
+                info.model_version,
+                info.data_version,
+                info.backend,
+                info.input_size_px,
+                info.pixel_size_m * 1e3,
+                info.width_scale_m,
+                info.outputs.join(", "),
+                info.normalisation,
+                info.max_batch_views,
+                info.server_version
+            );
+        }
+        Command::Health => {
+            let status = client.health().await?;
+            println!("{}", status.as_str_name());
+            if status != tonic_health::pb::health_check_response::ServingStatus::Serving {
+                std::process::exit(1);
+            }
+        }
+    }
+    Ok(())
+}

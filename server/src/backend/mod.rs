@@ -1,0 +1,47 @@
+//! Inference backends: ONNX Runtime (the product) or the analytic baseline.
+
+mod onnx;
+
+pub use onnx::{OnnxNet, onnxruntime_library};
+
+use mvgrasp_core::{GraspNet, MomentsNet};
+
+use crate::{
+    error::Result,
+    settings::{BackendKind, ModelSettings},
+};
+
+/// A loaded network and the name of what runs it.
+pub struct LoadedNet {
+    /// The network.
+    pub net: Box<dyn GraspNet + Send>,
+    /// `onnxruntime-cpu`, `onnxruntime-cuda` or `baseline-moments`.
+    pub backend: &'static str,
+}
+
+impl std::fmt::Debug for LoadedNet {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LoadedNet")
+            .field("model_version", &self.net.contract().model_version)
+            .field("backend", &self.backend)
+            .finish()
+    }
+}
+
+/// Loads the backend that `settings` names.
+pub fn load(settings: &ModelSettings) -> Result<LoadedNet> {
+    match settings.backend {
+        BackendKind::Onnx => {
+            let net = OnnxNet::load(settings)?;
+            let backend = net.provider();
+            Ok(LoadedNet {
+                net: Box::new(net),
+                backend,
+            })
+        }
+        BackendKind::Baseline => Ok(LoadedNet {
+            net: Box::new(MomentsNet::default()),
+            backend: "baseline-moments",
+        }),
+    }
+}

@@ -1,0 +1,329 @@
+//! Dynamic batching: views of concurrent requests share network calls.
+//!
+//! One worker thread owns the network. It takes the oldest queued request,
+//! then keeps adding queued requests until the batch holds `max_batch_views`
+//! views or the oldest has waited `max_wait`. A request's views are never
+//! split across calls. Requests whose caller has gone, or whose deadline has
+//! passed, are dropped before they reach the network.
+
+use std::{
+    sync::{
+        Arc,
+        atomic::{AtomicUsize, Ordering},
+        mpsc,
+    },
+    time::{Duration, Instant},
+};
+
+use mvgrasp_core::{GraspMaps, GraspNet, ViewBatch};
+use tokio::sync::oneshot;
+
+use crate::{
+    error::{Error, Result},
+    metrics::Metrics,
+};
+
+/// Batching limits.
+#[derive(Debug, Clone, Copy)]
+pub struct BatchLimits {
+    /// Most views per network call.
+    pub max_batch_views: usize,
+    /// Longest the oldest request waits for others.
+    pub max_wait: Duration,
+    /// Views allowed to wait before new requests are refused.
+    pub max_queued_views: usize,
+}
+
+struct Job {
+    batch: ViewBatch,
+    enqueued: Instant,
+    deadline: Option<Instant>,
+    reply: oneshot::Sender<Result<(GraspMaps, Duration)>>,
+}
+
+/// Submits view batches to the worker; cheap to clone.
+#[derive(Clone)]
+pub struct Batcher {
+    jobs: mpsc::Sender<Job>,
+    queued_views: Arc<AtomicUsize>,
+    limits: BatchLimits,
+    metrics: Arc<Metrics>,
+}
+
+impl std::fmt::Debug for Batcher {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Batcher").field("limits", &self.limits).finish()
+    }
+}
+
+impl Batcher {
+    /// Starts the worker thread that owns `net`. It stops when every `Batcher` is dropped.
+    pub fn spawn(net: Box<dyn GraspNet + Send>, limits: BatchLimits, metrics: Arc<Metrics>) -> Result<Self> {
+        let (tx, rx) = mpsc::channel();
+        let queued_views = Arc::new(AtomicUsize::new(0));
+        let worker = Worker {
+            net,
+            jobs: rx,
+            carried: None,
+            queued_views: Arc::clone(&queued_views),
+            limits,
+            metrics: Arc::clone(&metrics),
+        };
+        std::thread::Builder::new()
+            .name("mvgrasp-inference".into())
+            .spawn(move || worker.run())
+            .map_err(|e| Error::Startup(format!("inference thread: {e}")))?;
+        Ok(Self {
+            jobs: tx,
+            queued_views,
+            limits,
+            metrics,
+        })
+    }
+
+    /// Runs `batch` through the network (with others), returning its maps and
+    /// the time from queueing to the answer.
+    pub async fn infer(&self, batch: ViewBatch, deadline: Option<Instant>) -> Result<(GraspMaps, Duration)> {
+        let views = batch.len;
+        let queued = self.queued_views.fetch_add(views, Ordering::SeqCst) + views;
+        if queued > self.limits.max_queued_views && queued > views {
+            self.release(views);
+            self.metrics
+                .dropped
+                .with_label_values(&["queue_full"])
+                .inc_by(views as u64);
+            return Err(Error::Overloaded(format!(
+                "{queued} views would be queued for the network; the limit is {}",
+                self.limits.max_queued_views
+            )));
+        }
+        self.metrics.queued_views.set(queued as i64);
+        let (reply, answer) = oneshot::channel();
+        let job = Job {
+            batch,
+            enqueued: Instant::now(),
+            deadline,
+            reply,
+        };
+        if self.jobs.send(job).is_err() {
+            self.release(views);
+            return Err(Error::Unavailable("the inference worker has stopped".into()));
+        }
+        answer
+            .await
+            .map_err(|_| Error::Unavailable("the inference worker stopped during the call".into()))?
+    }
+
+    fn release(&self, views: usize) {
+        let left = self.queued_views.fetch_sub(views, Ordering::SeqCst) - views;
+        self.metrics.queued_views.set(left as i64);
+    }
+}
+
+struct Worker {
+    net: Box<dyn GraspNet + Send>,
+    jobs: mpsc::Receiver<Job>,
+    /// A job that did not fit the previous batch.
+    carried: Option<Job>,
+    queued_views: Arc<AtomicUsize>,
+    limits: BatchLimits,
+    metrics: Arc<Metrics>,
+}
+
+impl Worker {
+    fn run(mut self) {
+        loop {
+            let first = match self.carried.take() {
+                Some(job) => job,
+                None => match self.jobs.recv() {
+                    Ok(job) => job,
+                    Err(_) => return, // every Batcher is gone
+                },
+            };
+            let close_at = first.enqueued + self.limits.max_wait;
+            let mut views = first.batch.len;
+            let mut jobs = vec![first];
+            while views < self.limits.max_batch_views {
+                let wait = close_at.saturating_duration_since(Instant::now());
+                let next = if wait.is_zero() {
+                    self.jobs.try_recv().ok()
+                } else {
+                    self.jobs.recv_timeout(wait).ok()
+                };
+                let Some(job) = next else { break };
+                if views + job.batch.len > self.limits.max_batch_views {
+                    self.carried = Some(job);
+                    break;
+                }
+                views += job.batch.len;
+                jobs.push(job);
+            }
+            self.run_batch(jobs);
+        }
+    }
+
+    fn run_batch(&mut self, jobs: Vec<Job>) {
+        let now = Instant::now();
+        let mut live = Vec::with_capacity(jobs.len());
+        for job in jobs {
+            let views = job.batch.len;
+            let reason = if job.reply.is_closed() {
+                Some("caller_gone")
+            } else if job.deadline.is_some_and(|d| d <= now) {
+                Some("deadline")
+            } else {
+                None
+            };
+            match reason {
+                Some(reason) => {
+                    self.release(views);
+                    self.metrics
+                        .dropped
+                        .with_label_values(&[reason])
+                        .inc_by(views as u64);
+                    if reason == "deadline" {
+                        let _ = job.reply.send(Err(Error::DeadlineExceeded { stage: "queue" }));
+                    }
+                }
+                None => live.push(job),
+            }
+        }
+        if live.is_empty() {
+            return;
+        }
+        let size_px = live[0].batch.size_px;
+        let total: usize = live.iter().map(|j| j.batch.len).sum();
+        let mut batch = ViewBatch::new(size_px);
+        batch.data.reserve(total * size_px * size_px);
+        for job in &live {
+            batch.data.extend_from_slice(&job.batch.data);
+            batch.len += job.batch.len;
+        }
+        self.metrics.batch_views.observe(total as f64);
+        self.metrics.batch_requests.observe(live.len() as f64);
+        let result = self
+            .net
+            .infer(&batch)
+            .and_then(|maps| maps.check_matches(&batch).map(|()| maps));
+        self.release(total);
+        let per_view = 4 * size_px * size_px;
+        let mut offset = 0;
+        for job in live {
+            let n = job.batch.len;
+            let answer = match &result {
+                Ok(maps) => Ok((
+                    GraspMaps {
+                        size_px,
+                        len: n,
+                        data: maps.data[offset * per_view..(offset + n) * per_view].to_vec(),
+                    },
+                    job.enqueued.elapsed(),
+                )),
+                Err(e) => Err(Error::Internal(format!("inference: {e}"))),
+            };
+            offset += n;
+            // A caller that left meanwhile simply does not read its answer.
+            let _ = job.reply.send(answer);
+        }
+    }
+
+    fn release(&self, views: usize) {
+        let left = self.queued_views.fetch_sub(views, Ordering::SeqCst) - views;
+        self.metrics.queued_views.set(left as i64);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Mutex;
+
+    use mvgrasp_core::{ModelContract, MomentsNet};
+
+    use super::*;
+
+    /// Records the size of every call, answering with the baseline.
+    struct Recording {
+        inner: MomentsNet,
+        calls: Arc<Mutex<Vec<usize>>>,
+    }
+
+    impl GraspNet for Recording {
+        fn contract(&self) -> &ModelContract {
+            self.inner.contract()
+        }
+        fn infer(&mut self, batch: &ViewBatch) -> mvgrasp_core::Result<GraspMaps> {
+            self.calls.lock().unwrap().push(batch.len);
+            std::thread::sleep(Duration::from_millis(20));
+            self.inner.infer(batch)
+        }
+    }
+
+    fn views(n: usize, seed: f32) -> ViewBatch {
+        let mut b = ViewBatch::new(96);
+        for i in 0..n {
+            let mut image = vec![0.0f32; 96 * 96];
+            for v in 30..60 {
+                for u in 40..(50 + i) {
+                    image[v * 96 + u] = 0.5 + seed;
+                }
+            }
+            b.push(&image);
+        }
+        b
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn concurrent_requests_share_calls_and_get_their_own_maps() {
+        let calls = Arc::new(Mutex::new(Vec::new()));
+        let net = Recording {
+            inner: MomentsNet::default(),
+            calls: Arc::clone(&calls),
+        };
+        let limits = BatchLimits {
+            max_batch_views: 8,
+            max_wait: Duration::from_millis(50),
+            max_queued_views: 64,
+        };
+        let batcher = Batcher::spawn(Box::new(net), limits, Arc::new(Metrics::new().unwrap())).unwrap();
+        let mut tasks = Vec::new();
+        for k in 0..6 {
+            let b = batcher.clone();
+            tasks.push(tokio::spawn(async move {
+                let batch = views(2, k as f32 * 0.05);
+                let (maps, _) = b.infer(batch.clone(), None).await.unwrap();
+                let mut alone = MomentsNet::default();
+                assert_eq!(maps, alone.infer(&batch).unwrap(), "request {k}");
+            }));
+        }
+        for t in tasks {
+            t.await.unwrap();
+        }
+        let calls = calls.lock().unwrap().clone();
+        assert_eq!(calls.iter().sum::<usize>(), 12);
+        assert!(calls.iter().all(|&n| n <= 8), "{calls:?}");
+        assert!(
+            calls.len() < 6,
+            "6 concurrent requests took {} calls: {calls:?}",
+            calls.len()
+        );
+    }
+
+    #[tokio::test]
+    async fn expired_and_oversized_work_is_refused() {
+        let limits = BatchLimits {
+            max_batch_views: 4,
+            max_wait: Duration::ZERO,
+            max_queued_views: 4,
+        };
+        let metrics = Arc::new(Metrics::new().unwrap());
+        let batcher = Batcher::spawn(Box::new(MomentsNet::default()), limits, Arc::clone(&metrics)).unwrap();
+        let past = Instant::now().checked_sub(Duration::from_millis(1));
+        let err = batcher.infer(views(1, 0.0), past).await.unwrap_err();
+        assert!(matches!(err, Error::DeadlineExceeded { .. }), "{err}");
+        // A request larger than the whole queue still runs alone when nothing else waits.
+        let (maps, _) = batcher.infer(views(6, 0.0), None).await.unwrap();
+        assert_eq!(maps.len, 6);
+        assert_eq!(metrics.queued_views.get(), 0);
+        assert_eq!(metrics.dropped.with_label_values(&["deadline"]).get(), 1);
+    }
+}

@@ -1,0 +1,184 @@
+//! Prometheus metrics, owned by the server state and served on their own port.
+
+use std::{net::SocketAddr, sync::Arc};
+
+use prometheus::{
+    Encoder, Histogram, HistogramOpts, HistogramVec, IntCounterVec, IntGauge, IntGaugeVec, Opts, Registry,
+    TextEncoder,
+};
+use tokio::{
+    io::{AsyncReadExt, AsyncWriteExt},
+    net::TcpListener,
+};
+
+use crate::error::{Error, Result};
+
+/// Every metric the server exports (prefix `mvgrasp_`).
+#[derive(Debug, Clone)]
+pub struct Metrics {
+    registry: Registry,
+    /// Finished calls by method and gRPC status code.
+    pub requests: IntCounterVec,
+    /// Call latency by method (s).
+    pub request_seconds: HistogramVec,
+    /// Time per pipeline stage (s).
+    pub stage_seconds: HistogramVec,
+    /// Views per network call.
+    pub batch_views: Histogram,
+    /// Requests per network call.
+    pub batch_requests: Histogram,
+    /// Views waiting for the network.
+    pub queued_views: IntGauge,
+    /// Calls being served.
+    pub in_flight: IntGauge,
+    /// Objects found per planned frame.
+    pub objects_per_request: Histogram,
+    /// Grasps returned per planned frame.
+    pub grasps_per_request: Histogram,
+    /// Queued work dropped before inference, by reason.
+    pub dropped: IntCounterVec,
+    /// 1, labelled with the loaded model and backend.
+    pub model_info: IntGaugeVec,
+}
+
+fn metric_error(e: prometheus::Error) -> Error {
+    Error::Startup(format!("metrics: {e}"))
+}
+
+impl Metrics {
+    /// Registers every metric in a fresh registry.
+    pub fn new() -> Result<Self> {
+        let registry = Registry::new_custom(Some("mvgrasp".into()), None).map_err(metric_error)?;
+        let stage_buckets = vec![
+            1e-4, 2.5e-4, 5e-4, 1e-3, 2.5e-3, 5e-3, 1e-2, 2.5e-2, 5e-2, 0.1, 0.25, 0.5, 1.0,
+        ];
+        let count_buckets = vec![
+            1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0, 48.0, 64.0, 128.0, 256.0,
+        ];
+        let histogram = |name: &str, help: &str, buckets: &Vec<f64>, labels: &[&str]| {
+            HistogramVec::new(HistogramOpts::new(name, help).buckets(buckets.clone()), labels)
+        };
+        let counts = |name: &str, help: &str| {
+            Histogram::with_opts(HistogramOpts::new(name, help).buckets(count_buckets.clone()))
+                .map_err(metric_error)
+        };
+        let m = Self {
+            requests: IntCounterVec::new(
+                Opts::new("requests_total", "Finished calls by method and gRPC status code"),
+                &["method", "code"],
+            )
+            .map_err(metric_error)?,
+            request_seconds: histogram(
+                "request_duration_seconds",
+                "Call latency inside the server",
+                &stage_buckets,
+                &["method"],
+            )
+            .map_err(metric_error)?,
+            stage_seconds: histogram(
+                "stage_duration_seconds",
+                "Time per pipeline stage",
+                &stage_buckets,
+                &["stage"],
+            )
+            .map_err(metric_error)?,
+            batch_views: counts("batch_views", "Views per network call")?,
+            batch_requests: counts("batch_requests", "Requests per network call")?,
+            queued_views: IntGauge::new("queued_views", "Views waiting for the network")
+                .map_err(metric_error)?,
+            in_flight: IntGauge::new("in_flight_requests", "Calls being served").map_err(metric_error)?,
+            objects_per_request: counts("objects_per_request", "Objects found per planned frame")?,
+            grasps_per_request: counts("grasps_per_request", "Grasps returned per planned frame")?,
+            dropped: IntCounterVec::new(
+                Opts::new("dropped_views_total", "Queued views dropped before inference"),
+                &["reason"],
+            )
+            .map_err(metric_error)?,
+            model_info: IntGaugeVec::new(
+                Opts::new("model_info", "The loaded model (value 1)"),
+                &["model_version", "data_version", "backend", "input_size_px"],
+            )
+            .map_err(metric_error)?,
+            registry,
+        };
+        let collectors: [Box<dyn prometheus::core::Collector>; 11] = [
+            Box::new(m.requests.clone()),
+            Box::new(m.request_seconds.clone()),
+            Box::new(m.stage_seconds.clone()),
+            Box::new(m.batch_views.clone()),
+            Box::new(m.batch_requests.clone()),
+            Box::new(m.queued_views.clone()),
+            Box::new(m.in_flight.clone()),
+            Box::new(m.objects_per_request.clone()),
+            Box::new(m.grasps_per_request.clone()),
+            Box::new(m.dropped.clone()),
+            Box::new(m.model_info.clone()),
+        ];
+        for c in collectors {
+            m.registry.register(c).map_err(metric_error)?;
+        }
+        Ok(m)
+    }
+
+    /// The text exposition of every metric.
+    pub fn render(&self) -> String {
+        let mut out = Vec::new();
+        // Encoding into a Vec cannot fail on I/O; a failure would be a bug in a
+        // metric's labels, and an empty page is the honest answer then.
+        if let Err(e) = TextEncoder::new().encode(&self.registry.gather(), &mut out) {
+            tracing::error!(error = %e, "encoding metrics");
+        }
+        String::from_utf8_lossy(&out).into_owned()
+    }
+
+    /// Serves `GET /metrics` (anything else: 404) on `listener` until the task is dropped.
+    pub async fn serve(self: Arc<Self>, listener: TcpListener) {
+        loop {
+            let Ok((mut stream, _)) = listener.accept().await else {
+                continue;
+            };
+            let metrics = Arc::clone(&self);
+            tokio::spawn(async move {
+                let mut head = vec![0u8; 2048];
+                let mut read = 0;
+                // Read the request head (bounded, with a timeout).
+                let complete = tokio::time::timeout(std::time::Duration::from_secs(5), async {
+                    while read < head.len() {
+                        match stream.read(&mut head[read..]).await {
+                            Ok(0) | Err(_) => return false,
+                            Ok(n) => read += n,
+                        }
+                        if head[..read].windows(4).any(|w| w == b"\r\n\r\n") {
+                            return true;
+                        }
+                    }
+                    false
+                })
+                .await
+                .unwrap_or(false);
+                let line = String::from_utf8_lossy(&head[..read]);
+                let (status, body) = if !complete {
+                    ("400 Bad Request", String::new())
+                } else if line.starts_with("GET /metrics ") || line.starts_with("GET /metrics?") {
+                    ("200 OK", metrics.render())
+                } else {
+                    ("404 Not Found", "try /metrics\n".to_owned())
+                };
+                let response = format!(
+                    "HTTP/1.1 {status}\r\nContent-Type: text/plain; version=0.0.4\r\nContent-Length: {}\r\n\
+                     Connection: close\r\n\r\n{body}",
+                    body.len()
+                );
+                let _ = stream.write_all(response.as_bytes()).await;
+                let _ = stream.shutdown().await;
+            });
+        }
+    }
+}
+
+/// Binds the metrics port.
+pub async fn bind(addr: SocketAddr) -> Result<TcpListener> {
+    TcpListener::bind(addr)
+        .await
+        .map_err(|e| Error::Startup(format!("metrics listen {addr}: {e}")))
+}

@@ -1,0 +1,367 @@
+//! Configuration in layers: defaults -> TOML file -> `MVGRASP_*` environment
+//! -> command-line flags, deserialised into one validated [`Settings`].
+
+use std::{net::SocketAddr, path::PathBuf};
+
+use serde::Deserialize;
+
+use crate::error::{Error, Result};
+
+/// What runs the network.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum BackendKind {
+    /// An ONNX model through ONNX Runtime.
+    Onnx,
+    /// The analytic baseline of `mvgrasp-core` (no model file; not learned).
+    Baseline,
+}
+
+/// Where ONNX Runtime runs the model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Device {
+    /// The CPU execution provider.
+    Cpu,
+    /// The CUDA execution provider, falling back to the CPU with a warning.
+    Cuda,
+}
+
+/// The model and its runtime.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ModelSettings {
+    /// `onnx` or `baseline`.
+    pub backend: BackendKind,
+    /// The ONNX file (its metadata carries the model contract).
+    pub path: PathBuf,
+    /// `libonnxruntime.so`; unset: `ORT_DYLIB_PATH`, then the loader's search path.
+    pub onnxruntime_library: Option<PathBuf>,
+    /// `cpu` or `cuda`.
+    pub device: Device,
+    /// Threads ONNX Runtime uses inside one network call.
+    pub intra_threads: usize,
+}
+
+impl Default for ModelSettings {
+    fn default() -> Self {
+        Self {
+            backend: BackendKind::Onnx,
+            path: PathBuf::from("models/mvgrasp.onnx"),
+            onnxruntime_library: None,
+            device: Device::Cpu,
+            intra_threads: 1,
+        }
+    }
+}
+
+/// Dynamic batching of views across concurrent requests.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct BatchSettings {
+    /// Most views in one network call (a request's views are never split, so
+    /// one request with more views runs alone).
+    pub max_batch_views: usize,
+    /// Longest a view waits for others to join its batch (ms); 0 disables batching.
+    pub max_wait_ms: f64,
+    /// Views that may wait for the network before requests are refused.
+    pub max_queued_views: usize,
+}
+
+impl Default for BatchSettings {
+    fn default() -> Self {
+        Self {
+            max_batch_views: 32,
+            max_wait_ms: 2.0,
+            max_queued_views: 2048,
+        }
+    }
+}
+
+/// Limits on what one request may ask of the server.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Limits {
+    /// Largest encoded request (bytes).
+    pub max_message_bytes: usize,
+    /// Most pixels of a depth image.
+    pub max_image_pixels: usize,
+    /// Most points of a cloud.
+    pub max_cloud_points: usize,
+    /// Requests being planned at once before new ones are refused.
+    pub max_in_flight: usize,
+    /// Requests running the CPU stages at once (0: one per core).
+    pub cpu_workers: usize,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Self {
+            max_message_bytes: 32 << 20,
+            max_image_pixels: 4096 * 4096,
+            max_cloud_points: 4_000_000,
+            max_in_flight: 256,
+            cpu_workers: 0,
+        }
+    }
+}
+
+/// What a request gets for the fields it leaves unset.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RequestDefaults {
+    /// `max_grasps = 0` means this many.
+    pub max_grasps: u32,
+    /// An absent `min_quality` means this (tau).
+    pub min_quality: f32,
+}
+
+impl Default for RequestDefaults {
+    fn default() -> Self {
+        Self {
+            max_grasps: 10,
+            min_quality: 0.0,
+        }
+    }
+}
+
+/// All settings of the server.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Settings {
+    /// gRPC address.
+    pub listen: SocketAddr,
+    /// Prometheus `/metrics` address; unset: no metrics endpoint.
+    pub metrics_listen: Option<SocketAddr>,
+    /// The model.
+    pub model: ModelSettings,
+    /// Batching.
+    pub batching: BatchSettings,
+    /// Limits.
+    pub limits: Limits,
+    /// Request defaults.
+    pub defaults: RequestDefaults,
+    /// How long SIGTERM waits for in-flight calls before closing (s).
+    pub shutdown_grace_s: f64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            listen: SocketAddr::from(([0, 0, 0, 0], 50051)),
+            metrics_listen: Some(SocketAddr::from(([0, 0, 0, 0], 9464))),
+            model: ModelSettings::default(),
+            batching: BatchSettings::default(),
+            limits: Limits::default(),
+            defaults: RequestDefaults::default(),
+            shutdown_grace_s: 10.0,
+        }
+    }
+}
+
+/// Flags; each also reads its `MVGRASP_*` environment variable (flags win).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct Overrides {
+    /// TOML file with any of the settings (see deploy/server.toml).
+    #[arg(long, env = "MVGRASP_CONFIG")]
+    pub config: Option<PathBuf>,
+    /// gRPC address, e.g. 0.0.0.0:50051.
+    #[arg(long, env = "MVGRASP_LISTEN")]
+    pub listen: Option<SocketAddr>,
+    /// Prometheus address, e.g. 0.0.0.0:9464.
+    #[arg(long, env = "MVGRASP_METRICS_LISTEN")]
+    pub metrics_listen: Option<SocketAddr>,
+    /// Serve no metrics endpoint.
+    #[arg(long, env = "MVGRASP_NO_METRICS")]
+    pub no_metrics: bool,
+    /// `onnx` (a model file) or `baseline` (analytic, no model).
+    #[arg(long, env = "MVGRASP_BACKEND", value_enum)]
+    pub backend: Option<BackendKind>,
+    /// The ONNX model file.
+    #[arg(long, env = "MVGRASP_MODEL")]
+    pub model: Option<PathBuf>,
+    /// The ONNX Runtime library (libonnxruntime.so.1.31.1).
+    #[arg(long, env = "MVGRASP_ONNXRUNTIME")]
+    pub onnxruntime: Option<PathBuf>,
+    /// `cpu` or `cuda`.
+    #[arg(long, env = "MVGRASP_DEVICE", value_enum)]
+    pub device: Option<Device>,
+    /// ONNX Runtime threads per network call.
+    #[arg(long, env = "MVGRASP_INTRA_THREADS")]
+    pub intra_threads: Option<usize>,
+    /// Most views per network call.
+    #[arg(long, env = "MVGRASP_MAX_BATCH_VIEWS")]
+    pub max_batch_views: Option<usize>,
+    /// Longest wait for a batch to fill (ms); 0 disables batching.
+    #[arg(long, env = "MVGRASP_MAX_WAIT_MS")]
+    pub max_wait_ms: Option<f64>,
+}
+
+impl Settings {
+    /// Defaults, then the TOML file, then environment and flags.
+    pub fn load(overrides: &Overrides) -> Result<Self> {
+        let mut settings = match &overrides.config {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .map_err(|e| Error::Startup(format!("config {}: {e}", path.display())))?;
+                Self::from_toml(&text)
+                    .map_err(|e| Error::Startup(format!("config {}: {e}", path.display())))?
+            }
+            None => Self::default(),
+        };
+        settings.apply(overrides);
+        settings.validate()?;
+        Ok(settings)
+    }
+
+    /// Settings from TOML text (unset keys keep their defaults; unknown keys are errors).
+    pub fn from_toml(text: &str) -> Result<Self> {
+        toml::from_str(text).map_err(|e| Error::Startup(e.to_string()))
+    }
+
+    fn apply(&mut self, o: &Overrides) {
+        if let Some(v) = o.listen {
+            self.listen = v;
+        }
+        if let Some(v) = o.metrics_listen {
+            self.metrics_listen = Some(v);
+        }
+        if o.no_metrics {
+            self.metrics_listen = None;
+        }
+        if let Some(v) = o.backend {
+            self.model.backend = v;
+        }
+        if let Some(v) = &o.model {
+            self.model.path.clone_from(v);
+        }
+        if let Some(v) = &o.onnxruntime {
+            self.model.onnxruntime_library = Some(v.clone());
+        }
+        if let Some(v) = o.device {
+            self.model.device = v;
+        }
+        if let Some(v) = o.intra_threads {
+            self.model.intra_threads = v;
+        }
+        if let Some(v) = o.max_batch_views {
+            self.batching.max_batch_views = v;
+        }
+        if let Some(v) = o.max_wait_ms {
+            self.batching.max_wait_ms = v;
+        }
+    }
+
+    /// Checks every value, naming the key that is off.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |key: &str, reason: String| Err(Error::Startup(format!("`{key}`: {reason}")));
+        let b = &self.batching;
+        if !(1..=4096).contains(&b.max_batch_views) {
+            return bad(
+                "batching.max_batch_views",
+                format!("{} is not in 1..=4096", b.max_batch_views),
+            );
+        }
+        if !(b.max_wait_ms.is_finite() && (0.0..=1000.0).contains(&b.max_wait_ms)) {
+            return bad(
+                "batching.max_wait_ms",
+                format!("{} is not in 0..=1000", b.max_wait_ms),
+            );
+        }
+        if b.max_queued_views < b.max_batch_views {
+            return bad(
+                "batching.max_queued_views",
+                format!(
+                    "{} is below max_batch_views {}",
+                    b.max_queued_views, b.max_batch_views
+                ),
+            );
+        }
+        let l = &self.limits;
+        if l.max_message_bytes < 1024 {
+            return bad(
+                "limits.max_message_bytes",
+                format!("{} is under 1 KiB", l.max_message_bytes),
+            );
+        }
+        if l.max_image_pixels == 0 || l.max_cloud_points == 0 || l.max_in_flight == 0 {
+            return bad(
+                "limits",
+                "max_image_pixels, max_cloud_points and max_in_flight must be > 0".into(),
+            );
+        }
+        if !(1..=64).contains(&self.model.intra_threads) {
+            return bad(
+                "model.intra_threads",
+                format!("{} is not in 1..=64", self.model.intra_threads),
+            );
+        }
+        let q = self.defaults.min_quality;
+        if !(q.is_finite() && (0.0..=1.0).contains(&q)) {
+            return bad("defaults.min_quality", format!("{q} is not in [0, 1]"));
+        }
+        if self.defaults.max_grasps == 0 {
+            return bad("defaults.max_grasps", "must be > 0".into());
+        }
+        if !(self.shutdown_grace_s.is_finite() && self.shutdown_grace_s >= 0.0) {
+            return bad(
+                "shutdown_grace_s",
+                format!("{} is not >= 0", self.shutdown_grace_s),
+            );
+        }
+        Ok(())
+    }
+
+    /// The number of requests that run CPU stages at once.
+    pub fn cpu_workers(&self) -> usize {
+        match self.limits.cpu_workers {
+            0 => std::thread::available_parallelism().map_or(2, |n| n.get()),
+            n => n,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layers_apply_in_order() {
+        let toml = "listen = \"127.0.0.1:7000\"\n[batching]\nmax_batch_views = 8\nmax_wait_ms = 5.0\n";
+        let mut s = Settings::from_toml(toml).unwrap();
+        assert_eq!(s.listen.port(), 7000);
+        assert_eq!(s.batching.max_batch_views, 8);
+        assert_eq!(s.limits, Limits::default());
+        s.apply(&Overrides {
+            max_batch_views: Some(16),
+            no_metrics: true,
+            ..Default::default()
+        });
+        assert_eq!(s.batching.max_batch_views, 16);
+        assert_eq!(s.batching.max_wait_ms, 5.0);
+        assert_eq!(s.metrics_listen, None);
+        s.validate().unwrap();
+    }
+
+    #[test]
+    fn bad_settings_name_the_key() {
+        let err = Settings::from_toml("[batching]\nmax_batch_viewz = 8\n").unwrap_err();
+        assert!(err.to_string().contains("max_batch_viewz"), "{err}");
+        let mut s = Settings::default();
+        s.batching.max_batch_views = 0;
+        assert!(
+            s.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("batching.max_batch_views")
+        );
+        let mut s = Settings::default();
+        s.defaults.min_quality = f32::NAN;
+        assert!(
+            s.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("defaults.min_quality")
+        );
+    }
+}

@@ -1,0 +1,144 @@
+//! Servers started in-process on ephemeral ports, and rendered frames as requests.
+
+use std::{path::PathBuf, time::Duration};
+
+use mvgrasp_client::{PlannerClient, pb};
+use mvgrasp_core::{GraspMaps, GraspNet, ModelContract, MomentsNet, ViewBatch};
+use mvgrasp_server::{BackendKind, RunningServer, Settings, backend::LoadedNet};
+use nalgebra::Vector3;
+
+use crate::scene::{Camera, Scene, render};
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The ONNX Runtime library: `MVGRASP_ONNXRUNTIME`, else where
+/// `scripts/fetch-onnxruntime.sh` puts it.
+pub fn onnxruntime() -> PathBuf {
+    let path = std::env::var_os("MVGRASP_ONNXRUNTIME")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| repo().join("target/onnxruntime/libonnxruntime.so.1.31.1"));
+    assert!(
+        path.exists(),
+        "{} is missing: run scripts/fetch-onnxruntime.sh (scripts/test.sh does)",
+        path.display()
+    );
+    path
+}
+
+/// `models/fixtures/tiny.onnx` (closed-form outputs; see make_fixtures.py).
+pub fn tiny_model() -> PathBuf {
+    repo().join("models/fixtures/tiny.onnx")
+}
+
+/// Settings for a test server: ephemeral ports, the given backend.
+pub fn settings(backend: BackendKind) -> Settings {
+    let mut s = Settings {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        metrics_listen: Some("127.0.0.1:0".parse().unwrap()),
+        ..Settings::default()
+    };
+    s.model.backend = backend;
+    s.model.path = tiny_model();
+    s.model.onnxruntime_library = Some(onnxruntime());
+    s.shutdown_grace_s = 5.0;
+    s
+}
+
+/// Starts a server and connects a client to it.
+pub async fn start(settings: Settings) -> (RunningServer, PlannerClient) {
+    let server = mvgrasp_server::start(settings).await.expect("server starts");
+    let client = connect(&server).await;
+    (server, client)
+}
+
+/// Starts a server around `net`.
+pub async fn start_with(settings: Settings, net: LoadedNet) -> (RunningServer, PlannerClient) {
+    let server = mvgrasp_server::start_with_net(settings, net)
+        .await
+        .expect("server starts");
+    let client = connect(&server).await;
+    (server, client)
+}
+
+pub async fn connect(server: &RunningServer) -> PlannerClient {
+    PlannerClient::connect(&format!("http://{}", server.addr))
+        .await
+        .expect("client connects")
+}
+
+/// The baseline network, slowed down by `delay` per call.
+pub struct SlowNet {
+    pub inner: MomentsNet,
+    pub delay: Duration,
+}
+
+impl GraspNet for SlowNet {
+    fn contract(&self) -> &ModelContract {
+        self.inner.contract()
+    }
+    fn infer(&mut self, batch: &ViewBatch) -> mvgrasp_core::Result<GraspMaps> {
+        std::thread::sleep(self.delay);
+        self.inner.infer(batch)
+    }
+}
+
+pub fn slow_net(delay: Duration) -> LoadedNet {
+    LoadedNet {
+        net: Box::new(SlowNet {
+            inner: MomentsNet::default(),
+            delay,
+        }),
+        backend: "test-slow",
+    }
+}
+
+fn vector(v: Vector3<f64>) -> pb::Vector3 {
+    pb::Vector3 {
+        x: v.x,
+        y: v.y,
+        z: v.z,
+    }
+}
+
+/// The wire pose of an isometry.
+pub fn pose(p: &nalgebra::Isometry3<f64>) -> pb::Pose {
+    let q = p.rotation.quaternion();
+    pb::Pose {
+        position: Some(vector(p.translation.vector)),
+        orientation: Some(pb::Quaternion {
+            x: q.i,
+            y: q.j,
+            z: q.k,
+            w: q.w,
+        }),
+    }
+}
+
+/// A rendered uint16 frame of `scene` as a request (workspace around the table).
+pub fn request(scene: &Scene, camera: &Camera) -> pb::PlanGraspsRequest {
+    let rendered = render(scene, camera);
+    let k = camera.intrinsics;
+    let z = scene.table_z;
+    pb::PlanGraspsRequest {
+        sensor: Some(pb::plan_grasps_request::Sensor::Depth(pb::DepthImage {
+            width: camera.width,
+            height: camera.height,
+            encoding: pb::DepthEncoding::Uint16Mm as i32,
+            data: rendered.depth_bytes(),
+            intrinsics: Some(pb::CameraIntrinsics {
+                fx: k.fx,
+                fy: k.fy,
+                cx: k.cx,
+                cy: k.cy,
+            }),
+        })),
+        world_from_camera: Some(pose(&camera.world_from_camera)),
+        workspace: Some(pb::Workspace {
+            min: Some(vector(Vector3::new(-0.6, -0.4, z - 0.05))),
+            max: Some(vector(Vector3::new(0.6, 0.4, z + 0.4))),
+        }),
+        ..Default::default()
+    }
+}

@@ -1,0 +1,193 @@
+//! Operating the service: health, reflection, metrics, deadlines, callers
+//! that leave, batching across calls, and graceful shutdown.
+
+use std::time::Duration;
+
+use futures_util::StreamExt;
+use mvgrasp_client::{Error, PlannerClient};
+use mvgrasp_server::BackendKind;
+use nalgebra::Vector3;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tonic::Code;
+use tonic_health::pb::health_check_response::ServingStatus;
+use tonic_reflection::pb::v1::{
+    ServerReflectionRequest, server_reflection_client::ServerReflectionClient,
+    server_reflection_request::MessageRequest, server_reflection_response::MessageResponse,
+};
+
+use crate::{
+    fixture::{connect, request, settings, slow_net, start, start_with},
+    scene::{Camera, grid_scene},
+};
+
+async fn scrape(addr: std::net::SocketAddr) -> String {
+    let mut stream = tokio::net::TcpStream::connect(addr).await.unwrap();
+    stream
+        .write_all(b"GET /metrics HTTP/1.1\r\nHost: test\r\n\r\n")
+        .await
+        .unwrap();
+    let mut body = String::new();
+    stream.read_to_string(&mut body).await.unwrap();
+    assert!(body.starts_with("HTTP/1.1 200"), "{body}");
+    body
+}
+
+/// The value of the first sample line starting with `prefix`.
+fn sample(metrics: &str, prefix: &str) -> f64 {
+    metrics
+        .lines()
+        .find(|l| l.starts_with(prefix))
+        .and_then(|l| l.rsplit(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no sample {prefix}"))
+}
+
+fn frame() -> mvgrasp_client::pb::PlanGraspsRequest {
+    request(
+        &grid_scene(0.0, 6, 3, 0.13),
+        &Camera::orbit(Vector3::zeros(), 0.85, 50.0, -90.0),
+    )
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn health_reflection_and_metrics() {
+    let (server, mut client) = start(settings(BackendKind::Onnx)).await;
+    assert_eq!(client.health().await.unwrap(), ServingStatus::Serving);
+
+    let channel = tonic::transport::Endpoint::from_shared(format!("http://{}", server.addr))
+        .unwrap()
+        .connect()
+        .await
+        .unwrap();
+    let mut reflection = ServerReflectionClient::new(channel);
+    let ask = ServerReflectionRequest {
+        host: String::new(),
+        message_request: Some(MessageRequest::ListServices(String::new())),
+    };
+    let mut answers = reflection
+        .server_reflection_info(futures_util::stream::iter(vec![ask]))
+        .await
+        .unwrap()
+        .into_inner();
+    let Some(MessageResponse::ListServicesResponse(list)) =
+        answers.next().await.unwrap().unwrap().message_response
+    else {
+        panic!("no service list");
+    };
+    let names: Vec<String> = list.service.into_iter().map(|s| s.name).collect();
+    assert!(names.contains(&"mvgrasp.v1.GraspPlanner".to_owned()), "{names:?}");
+    assert!(names.contains(&"grpc.health.v1.Health".to_owned()), "{names:?}");
+
+    for _ in 0..3 {
+        client.plan(frame()).await.unwrap();
+    }
+    let _ = client.plan(Default::default()).await.unwrap_err();
+    let metrics = scrape(server.metrics_addr.unwrap()).await;
+    assert_eq!(
+        sample(
+            &metrics,
+            "mvgrasp_requests_total{code=\"Ok\",method=\"PlanGrasps\"}"
+        ),
+        3.0
+    );
+    assert_eq!(
+        sample(
+            &metrics,
+            "mvgrasp_requests_total{code=\"InvalidArgument\",method=\"PlanGrasps\"}"
+        ),
+        1.0
+    );
+    assert_eq!(sample(&metrics, "mvgrasp_objects_per_request_sum"), 18.0);
+    assert_eq!(sample(&metrics, "mvgrasp_batch_views_sum"), 18.0);
+    assert!(
+        sample(
+            &metrics,
+            "mvgrasp_stage_duration_seconds_count{stage=\"cluster\"}"
+        ) >= 3.0
+    );
+    assert!(metrics.contains("mvgrasp_model_info{backend=\"onnxruntime-cpu\""));
+    assert_eq!(sample(&metrics, "mvgrasp_queued_views"), 0.0);
+    server.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn deadlines_and_callers_that_leave() {
+    let mut s = settings(BackendKind::Baseline);
+    s.batching.max_wait_ms = 0.0;
+    let (server, client) = start_with(s, slow_net(Duration::from_millis(300))).await;
+    // A caller that gives up while queued behind another call: its views never reach the network.
+    let mut first = client.clone();
+    let busy = tokio::spawn(async move { first.plan(frame()).await });
+    tokio::time::sleep(Duration::from_millis(60)).await;
+    let mut second = client.clone();
+    let gone = tokio::time::timeout(Duration::from_millis(100), second.plan(frame())).await;
+    assert!(gone.is_err(), "the second call should still be queued");
+    assert!(busy.await.unwrap().is_ok());
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let metrics = scrape(server.metrics_addr.unwrap()).await;
+    assert_eq!(
+        sample(&metrics, "mvgrasp_dropped_views_total{reason=\"caller_gone\"}"),
+        6.0,
+        "{metrics}"
+    );
+    // A deadline shorter than the network call.
+    let mut hurried = client.clone().with_timeout(Duration::from_millis(150));
+    match hurried.plan(frame()).await {
+        Err(Error::Rpc(status)) => assert!(
+            matches!(status.code(), Code::DeadlineExceeded | Code::Cancelled),
+            "{status:?}"
+        ),
+        other => panic!("expected a deadline error, got {other:?}"),
+    }
+    server.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn concurrent_calls_share_network_batches() {
+    let mut s = settings(BackendKind::Baseline);
+    s.batching.max_wait_ms = 20.0;
+    s.batching.max_batch_views = 64;
+    let (server, client) = start_with(s, slow_net(Duration::from_millis(30))).await;
+    let calls: Vec<_> = (0..8)
+        .map(|_| {
+            let mut c = client.clone();
+            tokio::spawn(async move { c.plan(frame()).await })
+        })
+        .collect();
+    for call in calls {
+        assert_eq!(call.await.unwrap().unwrap().objects.len(), 6);
+    }
+    let metrics = scrape(server.metrics_addr.unwrap()).await;
+    let requests = sample(&metrics, "mvgrasp_batch_requests_sum");
+    let batches = sample(&metrics, "mvgrasp_batch_requests_count");
+    assert_eq!(requests, 8.0);
+    assert!(batches < 8.0, "8 concurrent calls ran in {batches} network calls");
+    server.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn shutdown_drains_calls_in_flight() {
+    let (server, client) = start_with(
+        settings(BackendKind::Baseline),
+        slow_net(Duration::from_millis(400)),
+    )
+    .await;
+    let addr = server.addr;
+    let mut caller = client.clone();
+    let in_flight = tokio::spawn(async move { caller.plan(frame()).await });
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    server.shutdown().await.unwrap();
+    let answer = in_flight.await.unwrap();
+    assert!(answer.is_ok(), "the call in flight was cut: {answer:?}");
+    assert!(PlannerClient::connect(&format!("http://{addr}")).await.is_err());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_second_client_connects_to_a_running_server() {
+    let (server, _first) = start(settings(BackendKind::Onnx)).await;
+    let mut second = connect(&server).await;
+    let info = second.model_info().await.unwrap();
+    assert_eq!(info.backend, "onnxruntime-cpu");
+    assert_eq!(info.outputs, ["quality", "cos2phi", "sin2phi", "width"]);
+    server.shutdown().await.unwrap();
+}
