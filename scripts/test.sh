@@ -25,5 +25,15 @@ cargo test --workspace --doc --quiet
 echo "== ur_rtde (a third-party RTDE client) against the robot-bridge emulator"
 cargo build --quiet -p mvgrasp-robot-bridge --bin robot-bridge
 python3 robot-bridge/tests/ur_rtde_check.py target/debug/robot-bridge
+echo "== ONNX Runtime (the CPU library from the onnxruntime wheel on PyPI)"
+MVGRASP_ONNXRUNTIME="$(scripts/fetch-onnxruntime.sh)"
+export MVGRASP_ONNXRUNTIME
+echo "== Python client (grpcio, stubs generated from proto/) against the server"
+pydeps=target/pydeps
+if ! PYTHONPATH="$pydeps" python3 -c "import grpc, grpc_tools" >/dev/null 2>&1; then
+    python3 -m pip install --quiet --disable-pip-version-check --target "$pydeps" -r client/python/requirements.txt
+fi
+cargo build --quiet -p mvgrasp-server --bin mvgrasp-server
+PYTHONPATH="$pydeps" python3 client/python/test_client.py target/debug/mvgrasp-server "$MVGRASP_ONNXRUNTIME"
 echo "== cargo nextest"
 cargo nextest run --workspace --no-fail-fast

@@ -78,6 +78,8 @@ impl PlannerClient {
             .map_err(|e| connect_error(e.to_string()))?
             .connect_timeout(Duration::from_secs(5))
             .tcp_nodelay(true)
+            .initial_stream_window_size(8 << 20)
+            .initial_connection_window_size(16 << 20)
             .connect()
             .await
             .map_err(|e| connect_error(format!("{e} ({:?})", std::error::Error::source(&e))))?;

@@ -2,15 +2,17 @@
 //!
 //! One worker thread owns the network. It takes the oldest queued request,
 //! then keeps adding queued requests until the batch holds `max_batch_views`
-//! views or the oldest has waited `max_wait`. A request's views are never
-//! split across calls. Requests whose caller has gone, or whose deadline has
+//! views or the oldest has waited `max_wait`. It waits only while other
+//! requests are still in their CPU stages (about to submit views): a lone
+//! request never pays `max_wait`. A request's views are never split across
+//! calls. Requests whose caller has gone, or whose deadline has
 //! passed, are dropped before they reach the network.
 
 use std::{
     sync::{
         Arc,
         atomic::{AtomicUsize, Ordering},
-        mpsc,
+        mpsc::{self, RecvTimeoutError, TryRecvError},
     },
     time::{Duration, Instant},
 };
@@ -22,6 +24,9 @@ use crate::{
     error::{Error, Result},
     metrics::Metrics,
 };
+
+/// How often a waiting worker looks again whether company is still coming.
+const POLL: Duration = Duration::from_micros(250);
 
 /// Batching limits.
 #[derive(Debug, Clone, Copy)]
@@ -46,6 +51,7 @@ struct Job {
 pub struct Batcher {
     jobs: mpsc::Sender<Job>,
     queued_views: Arc<AtomicUsize>,
+    preparing: Arc<AtomicUsize>,
     limits: BatchLimits,
     metrics: Arc<Metrics>,
 }
@@ -61,11 +67,13 @@ impl Batcher {
     pub fn spawn(net: Box<dyn GraspNet + Send>, limits: BatchLimits, metrics: Arc<Metrics>) -> Result<Self> {
         let (tx, rx) = mpsc::channel();
         let queued_views = Arc::new(AtomicUsize::new(0));
+        let preparing = Arc::new(AtomicUsize::new(0));
         let worker = Worker {
             net,
             jobs: rx,
             carried: None,
             queued_views: Arc::clone(&queued_views),
+            preparing: Arc::clone(&preparing),
             limits,
             metrics: Arc::clone(&metrics),
         };
@@ -76,9 +84,17 @@ impl Batcher {
         Ok(Self {
             jobs: tx,
             queued_views,
+            preparing,
             limits,
             metrics,
         })
+    }
+
+    /// Marks a request as being in its CPU stages (it will submit views soon)
+    /// for as long as the guard lives.
+    pub fn preparing(&self) -> Preparing {
+        self.preparing.fetch_add(1, Ordering::SeqCst);
+        Preparing(Arc::clone(&self.preparing))
     }
 
     /// Runs `batch` through the network (with others), returning its maps and
@@ -120,12 +136,23 @@ impl Batcher {
     }
 }
 
+/// See [`Batcher::preparing`].
+#[derive(Debug)]
+pub struct Preparing(Arc<AtomicUsize>);
+
+impl Drop for Preparing {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
 struct Worker {
     net: Box<dyn GraspNet + Send>,
     jobs: mpsc::Receiver<Job>,
     /// A job that did not fit the previous batch.
     carried: Option<Job>,
     queued_views: Arc<AtomicUsize>,
+    preparing: Arc<AtomicUsize>,
     limits: BatchLimits,
     metrics: Arc<Metrics>,
 }
@@ -144,13 +171,21 @@ impl Worker {
             let mut views = first.batch.len;
             let mut jobs = vec![first];
             while views < self.limits.max_batch_views {
-                let wait = close_at.saturating_duration_since(Instant::now());
-                let next = if wait.is_zero() {
-                    self.jobs.try_recv().ok()
-                } else {
-                    self.jobs.recv_timeout(wait).ok()
+                let job = match self.jobs.try_recv() {
+                    Ok(job) => job,
+                    Err(TryRecvError::Disconnected) => break,
+                    Err(TryRecvError::Empty) => {
+                        let wait = close_at.saturating_duration_since(Instant::now());
+                        if wait.is_zero() || self.preparing.load(Ordering::SeqCst) == 0 {
+                            break;
+                        }
+                        match self.jobs.recv_timeout(wait.min(POLL)) {
+                            Ok(job) => job,
+                            Err(RecvTimeoutError::Timeout) => continue,
+                            Err(RecvTimeoutError::Disconnected) => break,
+                        }
+                    }
                 };
-                let Some(job) = next else { break };
                 if views + job.batch.len > self.limits.max_batch_views {
                     self.carried = Some(job);
                     break;

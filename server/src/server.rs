@@ -5,8 +5,7 @@ use std::{future::Future, net::SocketAddr, sync::Arc, time::Duration};
 
 use mvgrasp_proto::v1::grasp_planner_server::GraspPlannerServer;
 use tokio::{net::TcpListener, sync::oneshot, task::JoinHandle};
-use tokio_stream::wrappers::TcpListenerStream;
-use tonic::transport::Server;
+use tonic::transport::{Server, server::TcpIncoming};
 
 use crate::{
     backend::{self, LoadedNet},
@@ -15,6 +14,9 @@ use crate::{
     service::{PlannerService, PlannerState, limit_status},
     settings::Settings,
 };
+
+/// HTTP/2 flow-control window per stream (bytes).
+const HTTP2_WINDOW_BYTES: u32 = 8 << 20;
 
 /// A started server: its addresses and the handle that stops it.
 #[derive(Debug)]
@@ -114,12 +116,16 @@ pub async fn start_with_net(settings: Settings, net: LoadedNet) -> Result<Runnin
                 .await;
             let _ = drain_tx.send(());
         };
+        // Frames are 0.5-4 MB: windows that hold a whole frame, and no Nagle
+        // delay on the small frames (window updates, responses).
         let serve = Server::builder()
+            .initial_stream_window_size(HTTP2_WINDOW_BYTES)
+            .initial_connection_window_size(2 * HTTP2_WINDOW_BYTES)
             .layer(tower::util::MapResponseLayer::new(rewrite_limit_status))
             .add_service(health_service)
             .add_service(reflection)
             .add_service(planner)
-            .serve_with_incoming_shutdown(TcpListenerStream::new(listener), signal);
+            .serve_with_incoming_shutdown(TcpIncoming::from(listener).with_nodelay(Some(true)), signal);
         let result = drained(serve, drain_rx, grace).await;
         if let Some(task) = metrics_task {
             task.abort();

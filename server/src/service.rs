@@ -87,11 +87,13 @@ impl PlannerState {
             _ => Ok(()),
         };
 
+        let preparing = self.batcher.preparing();
         let permit = self.cpu_permit().await?;
         check_deadline("prepare")?;
         let (state, req) = (Arc::clone(self), Arc::clone(&request));
         let prepared = blocking(move || {
             let _permit = permit;
+            let _preparing = preparing;
             let scene = convert::scene_of(&req, &state.settings.limits)?;
             let options = convert::options_of(&req, &state.settings.defaults)?;
             Ok(state.planner.prepare(&scene, &options)?)

@@ -41,6 +41,9 @@ pub struct ModelSettings {
     pub device: Device,
     /// Threads ONNX Runtime uses inside one network call.
     pub intra_threads: usize,
+    /// Let ONNX Runtime's threads spin between calls (lower latency when the
+    /// cores are otherwise idle; steals them from the CPU stages when not).
+    pub spin_wait: bool,
 }
 
 impl Default for ModelSettings {
@@ -51,6 +54,7 @@ impl Default for ModelSettings {
             onnxruntime_library: None,
             device: Device::Cpu,
             intra_threads: 1,
+            spin_wait: true,
         }
     }
 }
@@ -189,6 +193,9 @@ pub struct Overrides {
     /// ONNX Runtime threads per network call.
     #[arg(long, env = "MVGRASP_INTRA_THREADS")]
     pub intra_threads: Option<usize>,
+    /// Let ONNX Runtime's threads spin between calls.
+    #[arg(long, env = "MVGRASP_SPIN_WAIT")]
+    pub spin_wait: Option<bool>,
     /// Most views per network call.
     #[arg(long, env = "MVGRASP_MAX_BATCH_VIEWS")]
     pub max_batch_views: Option<usize>,
@@ -243,6 +250,9 @@ impl Settings {
         }
         if let Some(v) = o.intra_threads {
             self.model.intra_threads = v;
+        }
+        if let Some(v) = o.spin_wait {
+            self.model.spin_wait = v;
         }
         if let Some(v) = o.max_batch_views {
             self.batching.max_batch_views = v;

@@ -71,7 +71,12 @@ impl OnnxNet {
             .with_intra_threads(settings.intra_threads)
             .map_err(|e| startup("intra threads", &e))?
             .with_inter_threads(1)
-            .map_err(|e| startup("inter threads", &e))?;
+            .map_err(|e| startup("inter threads", &e))?
+            .with_config_entry(
+                "session.intra_op.allow_spinning",
+                if settings.spin_wait { "1" } else { "0" },
+            )
+            .map_err(|e| startup("spin setting", &e))?;
         let mut provider = "onnxruntime-cpu";
         if settings.device == Device::Cuda {
             (builder, provider) = with_cuda(builder);

@@ -1,0 +1,151 @@
+#!/usr/bin/env python3
+"""A Python client of the mvgrasp planner, generated from proto/ with grpcio-tools.
+
+    pip install -r client/python/requirements.txt
+    python3 client/python/mvgrasp_client.py --server 127.0.0.1:50051 \\
+        --depth samples/table6/depth.png --camera samples/table6/camera.json
+
+The stubs are generated into client/python/generated/ on first use (not
+committed: proto/ is the one source of truth). Depth PNGs are read with a
+small decoder below, so the example needs grpcio and protobuf only.
+"""
+
+import argparse
+import json
+import math
+import os
+import struct
+import subprocess
+import sys
+import zlib
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+PROTO_ROOT = os.path.join(HERE, "..", "..", "proto")
+GENERATED = os.path.join(HERE, "generated")
+
+
+def stubs():
+    """Imports (generating first if needed) the mvgrasp.v1 messages and stubs."""
+    proto = os.path.join(PROTO_ROOT, "mvgrasp", "v1", "grasp_planner.proto")
+    target = os.path.join(GENERATED, "mvgrasp", "v1", "grasp_planner_pb2.py")
+    if not os.path.exists(target) or os.path.getmtime(target) < os.path.getmtime(proto):
+        os.makedirs(GENERATED, exist_ok=True)
+        subprocess.run(
+            [
+                sys.executable, "-m", "grpc_tools.protoc",
+                f"-I{PROTO_ROOT}", f"--python_out={GENERATED}", f"--grpc_python_out={GENERATED}",
+                proto,
+            ],
+            check=True,
+        )
+    if GENERATED not in sys.path:
+        sys.path.insert(0, GENERATED)
+    from mvgrasp.v1 import grasp_planner_pb2, grasp_planner_pb2_grpc  # noqa: PLC0415
+
+    return grasp_planner_pb2, grasp_planner_pb2_grpc
+
+
+def read_depth_png(path):
+    """(width, height, little-endian uint16 bytes) of a 16-bit grey PNG."""
+    with open(path, "rb") as f:
+        data = f.read()
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        raise ValueError(f"{path}: not a PNG")
+    at, idat, width = 8, b"", None
+    while at < len(data):
+        length, kind = struct.unpack(">I4s", data[at:at + 8])
+        body = data[at + 8:at + 8 + length]
+        at += 12 + length
+        if kind == b"IHDR":
+            width, height, depth, colour, _, _, interlace = struct.unpack(">IIBBBBB", body)
+            if (depth, colour, interlace) != (16, 0, 0):
+                raise ValueError(f"{path}: need a 16-bit grey, non-interlaced PNG")
+        elif kind == b"IDAT":
+            idat += body
+        elif kind == b"IEND":
+            break
+    raw = zlib.decompress(idat)
+    stride, bpp = width * 2, 2
+    out, prev = bytearray(), bytearray(stride)
+    for row in range(height):
+        kind, line = raw[row * (stride + 1)], bytearray(raw[row * (stride + 1) + 1:(row + 1) * (stride + 1)])
+        for i in range(stride):
+            a = line[i - bpp] if i >= bpp else 0
+            b, c = prev[i], prev[i - bpp] if i >= bpp else 0
+            if kind == 1:
+                line[i] = (line[i] + a) & 0xFF
+            elif kind == 2:
+                line[i] = (line[i] + b) & 0xFF
+            elif kind == 3:
+                line[i] = (line[i] + (a + b) // 2) & 0xFF
+            elif kind == 4:
+                p = a + b - c
+                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 0xFF
+        out += line
+        prev = line
+    # PNG is big-endian; the API wants little-endian.
+    out[0::2], out[1::2] = out[1::2], out[0::2]
+    return width, height, bytes(out)
+
+
+def plan_request(pb, depth_png, camera_json, **options):
+    """A PlanGraspsRequest for a depth PNG (mm) and a camera JSON."""
+    with open(camera_json) as f:
+        camera = json.load(f)
+    width, height, data = read_depth_png(depth_png)
+    k = camera["intrinsics"]
+    p, q = camera["world_from_camera"]["position"], camera["world_from_camera"]["orientation"]
+    request = pb.PlanGraspsRequest(
+        depth=pb.DepthImage(
+            width=width, height=height, encoding=pb.DEPTH_ENCODING_UINT16_MM, data=data,
+            intrinsics=pb.CameraIntrinsics(fx=k["fx"], fy=k["fy"], cx=k["cx"], cy=k["cy"]),
+        ),
+        world_from_camera=pb.Pose(
+            position=pb.Vector3(x=p[0], y=p[1], z=p[2]),
+            orientation=pb.Quaternion(x=q[0], y=q[1], z=q[2], w=q[3]),
+        ),
+        **options,
+    )
+    if "workspace" in camera:
+        lo, hi = camera["workspace"]["min"], camera["workspace"]["max"]
+        request.workspace.min.CopyFrom(pb.Vector3(x=lo[0], y=lo[1], z=lo[2]))
+        request.workspace.max.CopyFrom(pb.Vector3(x=hi[0], y=hi[1], z=hi[2]))
+    return request
+
+
+def approach(q):
+    """The grasp frame's +z (approach) in the world, from its quaternion."""
+    x, y, z, w = q.x, q.y, q.z, q.w
+    return (2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--server", default="127.0.0.1:50051")
+    parser.add_argument("--depth", required=True)
+    parser.add_argument("--camera", required=True)
+    parser.add_argument("--max-grasps", type=int, default=0)
+    parser.add_argument("--timeout-s", type=float, default=10.0)
+    args = parser.parse_args()
+
+    import grpc  # noqa: PLC0415
+
+    pb, rpc = stubs()
+    with grpc.insecure_channel(args.server) as channel:
+        planner = rpc.GraspPlannerStub(channel)
+        info = planner.GetModelInfo(pb.GetModelInfoRequest(), timeout=args.timeout_s)
+        print(f"model {info.model_version} on {info.backend}, views {info.input_size_px} px")
+        request = plan_request(pb, args.depth, args.camera, max_grasps=args.max_grasps)
+        response = planner.PlanGrasps(request, timeout=args.timeout_s)
+    print(f"{len(response.objects)} objects, {len(response.grasps)} grasps, "
+          f"{response.timings.total_ms:.1f} ms in the server")
+    for rank, g in enumerate(response.grasps, 1):
+        p, a = g.pose.position, approach(g.pose.orientation)
+        print(f"{rank:>3} object {g.object_id} q {g.quality:.3f} width {g.width_m * 1e3:.1f} mm "
+              f"at ({p.x:.3f}, {p.y:.3f}, {p.z:.3f}) approach ({a[0]:+.2f}, {a[1]:+.2f}, {a[2]:+.2f})")
+    return 0 if math.isfinite(response.timings.total_ms) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

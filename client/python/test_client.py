@@ -1,0 +1,103 @@
+#!/usr/bin/env python3
+"""A real cross-language call: the Python client against a running mvgrasp-server.
+
+Usage: python3 client/python/test_client.py SERVER_BINARY ONNXRUNTIME_LIBRARY
+Starts the server (tiny fixture model, ONNX Runtime CPU) on a free port, plans
+on samples/table6 from Python, checks the response contract and a bad request,
+then stops the server with SIGTERM. Needs grpcio + grpcio-tools on sys.path.
+"""
+
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.join(HERE, "..", "..")
+sys.path.insert(0, HERE)
+
+import grpc  # noqa: E402
+
+import mvgrasp_client  # noqa: E402
+
+results = {"passed": 0, "failed": 0}
+
+
+def check(name, ok, detail=""):
+    results["passed" if ok else "failed"] += 1
+    print(f"{'ok  ' if ok else 'FAIL'} {name}{': ' + detail if detail and not ok else ''}")
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def main():
+    server_bin, ort_lib = sys.argv[1], sys.argv[2]
+    port = free_port()
+    server = subprocess.Popen(
+        [server_bin, "--listen", f"127.0.0.1:{port}", "--no-metrics",
+         "--model", os.path.join(ROOT, "models/fixtures/tiny.onnx"), "--onnxruntime", ort_lib],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    )
+    try:
+        pb, rpc = mvgrasp_client.stubs()
+        channel = grpc.insecure_channel(f"127.0.0.1:{port}")
+        grpc.channel_ready_future(channel).result(timeout=30)
+        planner = rpc.GraspPlannerStub(channel)
+
+        info = planner.GetModelInfo(pb.GetModelInfoRequest(), timeout=10)
+        check("model info", info.model_version == "fixture-tiny-1" and info.backend == "onnxruntime-cpu",
+              str(info))
+
+        request = mvgrasp_client.plan_request(
+            pb, os.path.join(ROOT, "samples/table6/depth.png"), os.path.join(ROOT, "samples/table6/camera.json"),
+            max_grasps=20, request_id="python-1")
+        response = planner.PlanGrasps(request, timeout=30)
+        check("six objects", len(response.objects) == 6, f"{len(response.objects)} objects")
+        check("grasps returned", len(response.grasps) > 0)
+        qualities = [g.quality for g in response.grasps]
+        check("sorted by quality", qualities == sorted(qualities, reverse=True), str(qualities))
+        norms = [math.sqrt(sum(v * v for v in (g.pose.orientation.x, g.pose.orientation.y,
+                                                 g.pose.orientation.z, g.pose.orientation.w)))
+                 for g in response.grasps]
+        check("unit quaternions", all(abs(n - 1) < 1e-9 for n in norms), str(norms))
+        check("widths within the 2F-140", all(0 < g.width_m <= 0.14 for g in response.grasps))
+        check("request id echoed", response.request_id == "python-1")
+
+        bad = mvgrasp_client.plan_request(
+            pb, os.path.join(ROOT, "samples/table6/depth.png"), os.path.join(ROOT, "samples/table6/camera.json"))
+        bad.depth.intrinsics.fx = 0
+        try:
+            planner.PlanGrasps(bad, timeout=10)
+            check("bad intrinsics refused", False, "no error")
+        except grpc.RpcError as e:
+            check("bad intrinsics refused",
+                  e.code() == grpc.StatusCode.INVALID_ARGUMENT and "depth.intrinsics.fx" in e.details(),
+                  f"{e.code()} {e.details()}")
+
+        frames = [mvgrasp_client.plan_request(
+            pb, os.path.join(ROOT, "samples/table6/depth.png"), os.path.join(ROOT, "samples/table6/camera.json"),
+            request_id=f"frame-{i}") for i in range(3)]
+        ids = [r.request_id for r in planner.StreamGrasps(iter(frames), timeout=30)]
+        check("stream in order", ids == ["frame-0", "frame-1", "frame-2"], str(ids))
+        channel.close()
+    finally:
+        server.send_signal(signal.SIGTERM)
+        try:
+            code = server.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            code = None
+        check("server stops on SIGTERM", code == 0, f"exit {code}; log:\n{server.stdout.read()}")
+    print(f"python_client: {results['passed']} passed, {results['failed']} failed")
+    return 1 if results["failed"] else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
