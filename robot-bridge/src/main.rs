@@ -52,9 +52,10 @@ enum Command {
         #[arg(long, num_args = 6, allow_negative_numbers = true, default_values_t = HOME)]
         current: Vec<f64>,
     },
-    /// Plan grasps on a depth frame + camera file (in-process baseline planner
-    /// until the gRPC planner exists), choose a feasible pick and run it on
-    /// the controller, printing each step; `--dry-run` prints the URScript only.
+    /// Plan grasps on a depth frame + camera file (with the mvgrasp service
+    /// given by `--planner`, else in-process with the analytic baseline),
+    /// choose a feasible pick and run it on the controller, printing each
+    /// step; `--dry-run` prints the URScript only.
     Pick {
         /// 16-bit depth PNG (millimetres).
         #[arg(long)]
@@ -74,6 +75,9 @@ enum Command {
         /// Print the URScript instead of moving the robot.
         #[arg(long)]
         dry_run: bool,
+        /// The mvgrasp planner service, e.g. http://127.0.0.1:50051 (unset: in-process baseline).
+        #[arg(long, env = "MVGRASP_SERVER")]
+        planner: Option<String>,
     },
     /// Run the controller emulator (RTDE + script receiver) until interrupted.
     Emulate {
@@ -157,8 +161,14 @@ fn main() -> anyhow::Result<()> {
             base_position,
             basket,
             dry_run,
+            planner,
         } => {
-            pick(&arm, &depth, &camera, &robot, &base_position, &basket, dry_run)?;
+            let files = PickFiles {
+                depth: &depth,
+                camera: &camera,
+                planner: planner.as_deref(),
+            };
+            pick(&arm, &files, &robot, &base_position, &basket, dry_run)?;
         }
         Command::Emulate {
             host,
@@ -201,10 +211,16 @@ fn main() -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Where `pick` gets its grasps.
+struct PickFiles<'a> {
+    depth: &'a std::path::Path,
+    camera: &'a std::path::Path,
+    planner: Option<&'a str>,
+}
+
 fn pick(
     arm: &Ur5e,
-    depth: &std::path::Path,
-    camera: &std::path::Path,
+    files: &PickFiles<'_>,
     robot: &str,
     base_position: &[f64],
     basket: &[f64],
@@ -212,13 +228,17 @@ fn pick(
 ) -> anyhow::Result<()> {
     use robot_bridge::execute::{Controller, execute_pick};
     use robot_bridge::gripper::Gripper;
-    use robot_bridge::local_planner::{load_scene, plan_locally};
+    use robot_bridge::planner::{load_scene, plan_locally, plan_remotely};
     use robot_bridge::rtde::RtdeClient;
 
-    let scene = load_scene(depth, camera)?;
-    let planned = plan_locally(&scene, 10)?;
+    let scene = load_scene(files.depth, files.camera)?;
+    let planned = match files.planner {
+        Some(endpoint) => plan_remotely(endpoint, &scene, 10, std::time::Duration::from_secs(5))?,
+        None => plan_locally(&scene, 10)?,
+    };
     println!(
-        "planner (in-process baseline): {} objects, {} grasps",
+        "planner {}: {} objects, {} grasps",
+        planned.planner,
         planned.objects.len(),
         planned.grasps.len()
     );

@@ -354,6 +354,12 @@ mod tests {
     }
 
     #[test]
+    fn the_documented_config_file_states_the_defaults() {
+        let documented = Settings::from_toml(include_str!("../../deploy/server.toml")).unwrap();
+        assert_eq!(documented, Settings::default());
+    }
+
+    #[test]
     fn bad_settings_name_the_key() {
         let err = Settings::from_toml("[batching]\nmax_batch_viewz = 8\n").unwrap_err();
         assert!(err.to_string().contains("max_batch_viewz"), "{err}");

@@ -301,7 +301,7 @@ mod from_files {
     use super::*;
     use robot_bridge::execute::{Controller, PickOutcome, execute_pick};
     use robot_bridge::gripper::Gripper;
-    use robot_bridge::local_planner::{load_scene, plan_locally};
+    use robot_bridge::planner::{load_scene, plan_locally, plan_remotely};
 
     fn sample(file: &str) -> std::path::PathBuf {
         std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -354,16 +354,71 @@ mod from_files {
     #[test]
     fn missing_or_bad_files_name_the_problem() {
         let err = load_scene(&sample("nope.png"), &sample("camera.json")).expect_err("missing");
-        assert!(
-            err.to_string().contains("depth_png") && err.to_string().contains("nope.png"),
-            "{err}"
-        );
+        assert!(err.to_string().contains("nope.png"), "{err}");
         let dir = std::env::temp_dir().join(format!("rb-bad-camera-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("dir");
         let bad = dir.join("camera.json");
-        std::fs::write(&bad, r#"{"intrinsics": {"fx": 600, "fy": 600, "cx": 320}}"#).expect("write");
+        std::fs::write(
+            &bad,
+            r#"{"intrinsics": {"fx": 600, "fy": 600, "cx": 320},
+                "world_from_camera": {"position": [0, 0, 1], "orientation": [1, 0, 0, 0]}}"#,
+        )
+        .expect("write");
         let err = load_scene(&sample("depth.png"), &bad).expect_err("bad camera");
         assert!(err.to_string().contains("intrinsics.cy"), "{err}");
+    }
+
+    /// The service (baseline backend) plans exactly what the in-process
+    /// planner plans: same pipeline, same network, over gRPC.
+    #[test]
+    fn the_service_plans_what_the_in_process_planner_plans() {
+        let runtime = tokio::runtime::Runtime::new().expect("runtime");
+        let mut settings = mvgrasp_server::Settings {
+            listen: "127.0.0.1:0".parse().expect("address"),
+            metrics_listen: None,
+            ..Default::default()
+        };
+        settings.model.backend = mvgrasp_server::BackendKind::Baseline;
+        let server = runtime.block_on(mvgrasp_server::start(settings)).expect("server");
+        let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
+        let local = plan_locally(&scene, 10).expect("local");
+        let remote = plan_remotely(&format!("http://{}", server.addr), &scene, 10, TIMEOUT).expect("remote");
+        assert!(remote.planner.contains("baseline-moments"), "{}", remote.planner);
+        assert_eq!(remote.grasps.len(), local.grasps.len());
+        assert!(!remote.grasps.is_empty());
+        for (r, l) in remote.grasps.iter().zip(&local.grasps) {
+            let d = r.world_from_grasp.inverse() * l.world_from_grasp;
+            assert!(d.translation.vector.norm() < 1e-9 && d.rotation.angle() < 1e-9);
+            assert_eq!((r.width_m, r.quality, r.object), (l.width_m, l.quality, l.object));
+        }
+        assert_eq!(remote.objects.len(), 6);
+        for (r, l) in remote.objects.iter().zip(&local.objects) {
+            assert!((r.half_extents_m - l.half_extents_m).norm() < 1e-9);
+            assert!(
+                (r.world_from_box.translation.vector - l.world_from_box.translation.vector).norm() < 1e-9
+            );
+        }
+        assert!(
+            (remote.table.world_from_box.translation.vector - local.table.world_from_box.translation.vector)
+                .norm()
+                < 1e-9
+        );
+        runtime.block_on(server.shutdown()).expect("shutdown");
+    }
+
+    #[test]
+    fn a_planner_that_is_down_is_a_clear_error() {
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .and_then(|l| l.local_addr())
+            .expect("free port")
+            .port();
+        let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
+        let endpoint = format!("http://127.0.0.1:{port}");
+        let err = plan_remotely(&endpoint, &scene, 10, TIMEOUT).expect_err("nothing listens there");
+        assert!(
+            matches!(err, Error::Io(_)) && err.to_string().contains(&endpoint),
+            "{err}"
+        );
     }
 
     #[test]

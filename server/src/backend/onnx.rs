@@ -118,7 +118,7 @@ fn with_cuda(
 ) -> (ort::session::builder::SessionBuilder, &'static str) {
     use ort::ep::ExecutionProvider;
     let cuda = ort::ep::CUDA::default();
-    match cuda.is_available() {
+    match ort::ep::CUDA::is_available() {
         Ok(true) => {}
         Ok(false) => {
             tracing::warn!("this ONNX Runtime has no CUDA execution provider; running on the CPU");
