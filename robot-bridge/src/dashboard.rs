@@ -28,3 +28,22 @@ pub fn dashboard_command(address: impl ToSocketAddrs, command: &str, timeout: Du
         Err(e) => Err(Error::Io(format!("dashboard reply to `{command}`: {e}"))),
     }
 }
+
+/// Recovery after a protective stop, for bridges configured to do it: waits
+/// `wait` (the controller refuses an unlock within 5 s of the stop), sends
+/// `unlock protective stop`, and returns the controller's `safetystatus`
+/// afterwards. It moves nothing.
+pub fn unlock_protective_stop(
+    address: impl ToSocketAddrs + Copy,
+    wait: Duration,
+    timeout: Duration,
+) -> Result<String> {
+    std::thread::sleep(wait);
+    let reply = dashboard_command(address, "unlock protective stop", timeout)?;
+    if !reply.to_ascii_lowercase().contains("releasing") {
+        return Err(Error::Controller(format!(
+            "the dashboard refused the unlock: {reply}"
+        )));
+    }
+    dashboard_command(address, "safetystatus", timeout)
+}

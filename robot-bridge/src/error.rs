@@ -20,6 +20,13 @@ pub enum Error {
     /// The peer sent something malformed.
     #[error("protocol: {0}")]
     Protocol(String),
+    /// A protective stop (or another safety stop) happened during a motion;
+    /// nothing further was sent.
+    #[error("protective stop (safety mode {safety_mode}) during the motion: robot left stopped")]
+    ProtectiveStop {
+        /// The controller's safety mode (1 = normal).
+        safety_mode: i32,
+    },
     /// The controller refused a request or is not in a state to move.
     #[error("controller: {0}")]
     Controller(String),

@@ -112,10 +112,9 @@ fn run_chunk(
     loop {
         let state = controller.rtde.next_state()?;
         if state.stopped_by_safety() {
-            return Err(Error::Controller(format!(
-                "protective stop (safety mode {}) during the motion: robot left stopped",
-                state.safety_mode
-            )));
+            return Err(Error::ProtectiveStop {
+                safety_mode: state.safety_mode,
+            });
         }
         started |= state.runtime_state == 2;
         let arrived = (0..6).all(|i| (state.actual_q[i] - target[i]).abs() < ARRIVED_RAD);

@@ -17,6 +17,7 @@
 //! ```
 
 pub mod collision;
+pub mod config;
 pub mod dashboard;
 pub mod emulate;
 mod error;

@@ -5,6 +5,7 @@ use std::f64::consts::FRAC_PI_2;
 use anyhow::{Context, bail};
 use clap::{Parser, Subcommand};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use robot_bridge::config::BridgeConfig;
 use robot_bridge::emulate::{Emulator, EmulatorPorts};
 use robot_bridge::pick::{GraspTarget, PickConfig, Step, plan_pick, urscript};
 use robot_bridge::ur5e::Ur5e;
@@ -63,21 +64,24 @@ enum Command {
         /// Camera JSON (intrinsics, world_from_camera, workspace).
         #[arg(long)]
         camera: std::path::PathBuf,
-        /// Controller host (standard ports 30004, 30002, 63352).
-        #[arg(long, default_value = "127.0.0.1")]
-        robot: String,
-        /// Robot base position in the world (m).
-        #[arg(long, num_args = 3, allow_negative_numbers = true, default_values_t = [0.0, 0.5, 0.0])]
-        base_position: Vec<f64>,
-        /// TCP position over the basket, world (m).
-        #[arg(long, num_args = 3, allow_negative_numbers = true, default_values_t = [0.45, 0.45, 0.3])]
-        basket: Vec<f64>,
-        /// Print the URScript instead of moving the robot.
+        /// Settings file (calibration, limits, planner, recovery; see robot-bridge/bridge.toml).
+        #[arg(long, env = "ROBOT_BRIDGE_CONFIG")]
+        config: Option<std::path::PathBuf>,
+        /// Controller host (standard ports 30004, 30002, 29999, 63352).
         #[arg(long)]
-        dry_run: bool,
+        robot: Option<String>,
+        /// Robot base position in the world (m).
+        #[arg(long, num_args = 3, allow_negative_numbers = true)]
+        base_position: Option<Vec<f64>>,
+        /// TCP position over the basket, world (m).
+        #[arg(long, num_args = 3, allow_negative_numbers = true)]
+        basket: Option<Vec<f64>>,
         /// The mvgrasp planner service, e.g. http://127.0.0.1:50051 (unset: in-process baseline).
         #[arg(long, env = "MVGRASP_SERVER")]
         planner: Option<String>,
+        /// Print the URScript instead of moving the robot.
+        #[arg(long)]
+        dry_run: bool,
     },
     /// Run the controller emulator (RTDE + script receiver) until interrupted.
     Emulate {
@@ -157,18 +161,31 @@ fn main() -> anyhow::Result<()> {
         Command::Pick {
             depth,
             camera,
+            config,
             robot,
             base_position,
             basket,
-            dry_run,
             planner,
+            dry_run,
         } => {
-            let files = PickFiles {
-                depth: &depth,
-                camera: &camera,
-                planner: planner.as_deref(),
+            let mut settings = match &config {
+                Some(path) => BridgeConfig::load(path)?,
+                None => BridgeConfig::default(),
             };
-            pick(&arm, &files, &robot, &base_position, &basket, dry_run)?;
+            if let Some(host) = robot {
+                settings.robot.host = host;
+            }
+            if let Some(p) = base_position {
+                settings.robot.world_from_base.position = [p[0], p[1], p[2]];
+            }
+            if let Some(p) = basket {
+                settings.pick.world_from_drop.position = [p[0], p[1], p[2]];
+            }
+            if planner.is_some() {
+                settings.planner.endpoint = planner;
+            }
+            settings.validate()?;
+            pick(&arm, &depth, &camera, &settings, dry_run)?;
         }
         Command::Emulate {
             host,
@@ -211,30 +228,30 @@ fn main() -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Where `pick` gets its grasps.
-struct PickFiles<'a> {
-    depth: &'a std::path::Path,
-    camera: &'a std::path::Path,
-    planner: Option<&'a str>,
-}
-
 fn pick(
     arm: &Ur5e,
-    files: &PickFiles<'_>,
-    robot: &str,
-    base_position: &[f64],
-    basket: &[f64],
+    depth: &std::path::Path,
+    camera: &std::path::Path,
+    settings: &BridgeConfig,
     dry_run: bool,
 ) -> anyhow::Result<()> {
+    use std::time::Duration;
+
     use robot_bridge::execute::{Controller, execute_pick};
     use robot_bridge::gripper::Gripper;
     use robot_bridge::planner::{load_scene, plan_locally, plan_remotely};
     use robot_bridge::rtde::RtdeClient;
 
-    let scene = load_scene(files.depth, files.camera)?;
-    let planned = match files.planner {
-        Some(endpoint) => plan_remotely(endpoint, &scene, 10, std::time::Duration::from_secs(5))?,
-        None => plan_locally(&scene, 10)?,
+    let scene = load_scene(depth, camera)?;
+    let max_grasps = settings.pick.max_grasps;
+    let planned = match &settings.planner.endpoint {
+        Some(endpoint) => plan_remotely(
+            endpoint,
+            &scene,
+            max_grasps,
+            Duration::from_secs_f64(settings.planner.timeout_s),
+        )?,
+        None => plan_locally(&scene, max_grasps)?,
     };
     println!(
         "planner {}: {} objects, {} grasps",
@@ -243,15 +260,11 @@ fn pick(
         planned.grasps.len()
     );
     let config = PickConfig {
-        world_from_base: Isometry3::translation(base_position[0], base_position[1], base_position[2]),
-        world_from_drop: Isometry3::from_parts(
-            Translation3::new(basket[0], basket[1], basket[2]),
-            UnitQuaternion::from_axis_angle(&nalgebra::Vector3::x_axis(), std::f64::consts::PI),
-        ),
         obstacles: vec![planned.table.clone()],
-        ..PickConfig::default()
+        ..settings.pick_config()?
     };
-    let timeout = std::time::Duration::from_secs(2);
+    let robot = settings.robot.host.as_str();
+    let timeout = Duration::from_secs_f64(settings.robot.io_timeout_s);
     let mut rtde = if dry_run {
         None
     } else {
@@ -310,11 +323,27 @@ fn pick(
         script_address,
         gripper,
         io_timeout: timeout,
-        motion_timeout: std::time::Duration::from_secs(60),
+        motion_timeout: Duration::from_secs_f64(settings.robot.motion_timeout_s),
     };
-    let outcome = execute_pick(&mut controller, &plan, &config)?;
-    println!("outcome: {outcome:?}");
-    Ok(())
+    match execute_pick(&mut controller, &plan, &config) {
+        Ok(outcome) => {
+            println!("outcome: {outcome:?}");
+            Ok(())
+        }
+        Err(stop @ robot_bridge::Error::ProtectiveStop { .. })
+            if settings.recovery.unlock_protective_stop =>
+        {
+            println!("{stop}; unlocking it through the dashboard (recovery.unlock_protective_stop)");
+            let status = robot_bridge::dashboard::unlock_protective_stop(
+                (robot, 29999),
+                Duration::from_secs_f64(settings.recovery.unlock_after_s),
+                timeout,
+            )?;
+            println!("dashboard: {status}; the pick is over, the robot stays where it stopped");
+            Err(stop.into())
+        }
+        Err(e) => Err(e.into()),
+    }
 }
 
 fn pose_from_args(position: &[f64], orientation: &[f64]) -> anyhow::Result<Isometry3<f64>> {

@@ -48,7 +48,74 @@ fn bad(field: &'static str, reason: impl Into<String>) -> Error {
     }
 }
 
-/// Reads `depth_png` and `camera_json`; errors name the file and the field.
+impl SceneFiles {
+    /// A frame straight from a camera driver: `depth_mm` row-major (0 = no
+    /// reading), the driver's intrinsics, the camera's calibrated pose in the
+    /// world, and the workspace box. This is where a live camera plugs in.
+    pub fn from_depth_frame(
+        width: u32,
+        height: u32,
+        depth_mm: &[u16],
+        intrinsics: Intrinsics,
+        world_from_camera: Isometry3<f64>,
+        workspace: Workspace,
+    ) -> Result<Self> {
+        if depth_mm.len() != width as usize * height as usize {
+            return Err(bad(
+                "depth",
+                format!(
+                    "{width}x{height} needs {} readings, got {}",
+                    width as usize * height as usize,
+                    depth_mm.len()
+                ),
+            ));
+        }
+        let depth_le: Vec<u8> = depth_mm.iter().flat_map(|d| d.to_le_bytes()).collect();
+        let q = world_from_camera.rotation.quaternion();
+        let t = world_from_camera.translation.vector;
+        let vector = |x: f64, y: f64, z: f64| Some(pb::Vector3 { x, y, z });
+        let request = pb::PlanGraspsRequest {
+            sensor: Some(pb::plan_grasps_request::Sensor::Depth(pb::DepthImage {
+                width,
+                height,
+                encoding: pb::DepthEncoding::Uint16Mm as i32,
+                data: depth_le.clone(),
+                intrinsics: Some(pb::CameraIntrinsics {
+                    fx: intrinsics.fx,
+                    fy: intrinsics.fy,
+                    cx: intrinsics.cx,
+                    cy: intrinsics.cy,
+                }),
+            })),
+            world_from_camera: Some(pb::Pose {
+                position: vector(t.x, t.y, t.z),
+                orientation: Some(pb::Quaternion {
+                    x: q.i,
+                    y: q.j,
+                    z: q.k,
+                    w: q.w,
+                }),
+            }),
+            workspace: Some(pb::Workspace {
+                min: vector(workspace.min.x, workspace.min.y, workspace.min.z),
+                max: vector(workspace.max.x, workspace.max.y, workspace.max.z),
+            }),
+            ..Default::default()
+        };
+        Ok(Self {
+            request,
+            depth_le,
+            width,
+            height,
+            intrinsics,
+            world_from_camera,
+            workspace,
+        })
+    }
+}
+
+/// Reads `depth_png` and `camera_json` (the file route to
+/// [`SceneFiles::from_depth_frame`]); errors name the file and the field.
 pub fn load_scene(depth_png: &Path, camera_json: &Path) -> Result<SceneFiles> {
     let files = mvgrasp_client::scene::SceneFiles::load_depth(depth_png, camera_json)
         .map_err(|e| bad("scene", e.to_string()))?;
@@ -71,20 +138,25 @@ pub fn load_scene(depth_png: &Path, camera_json: &Path) -> Result<SceneFiles> {
     let (lo, hi) = (ws.min.unwrap_or_default(), ws.max.unwrap_or_default());
     let workspace = Workspace::new([lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z])
         .map_err(|e| bad("workspace", e.to_string()))?;
-    Ok(SceneFiles {
-        request: files.request(),
-        depth_le: depth.data.clone(),
-        width: depth.width,
-        height: depth.height,
-        intrinsics: Intrinsics {
-            fx: k.fx,
-            fy: k.fy,
-            cx: k.cx,
-            cy: k.cy,
-        },
+    let depth_mm: Vec<u16> = depth
+        .data
+        .chunks_exact(2)
+        .map(|b| u16::from_le_bytes([b[0], b[1]]))
+        .collect();
+    let intrinsics = Intrinsics {
+        fx: k.fx,
+        fy: k.fy,
+        cx: k.cx,
+        cy: k.cy,
+    };
+    SceneFiles::from_depth_frame(
+        depth.width,
+        depth.height,
+        &depth_mm,
+        intrinsics,
         world_from_camera,
         workspace,
-    })
+    )
 }
 
 /// Grasps and obstacles of one frame.

@@ -274,25 +274,16 @@ mod executor {
                 emu.faults().protective_stop.store(true, Ordering::Relaxed);
             });
             let err = execute_pick(&mut c, &plan, &config).expect_err("stopped");
-            assert!(
-                matches!(&err, Error::Controller(m) if m.contains("protective stop")),
-                "{err}"
-            );
+            assert!(matches!(&err, Error::ProtectiveStop { safety_mode: 3 }), "{err}");
         });
         let q = emu.joints();
         std::thread::sleep(Duration::from_millis(100));
         assert_eq!(emu.joints(), q, "nothing moves after the stop");
-        // Recovery through the dashboard, when configured to.
-        let reply = robot_bridge::dashboard::dashboard_command(
-            emu.dashboard_address,
-            "unlock protective stop",
-            TIMEOUT,
-        )
-        .expect("dashboard");
-        assert_eq!(reply, "Protective stop releasing");
+        // Recovery through the dashboard, when configured to: unlocked, still in place.
         let status =
-            robot_bridge::dashboard::dashboard_command(emu.dashboard_address, "safetystatus", TIMEOUT)
+            robot_bridge::dashboard::unlock_protective_stop(emu.dashboard_address, Duration::ZERO, TIMEOUT)
                 .expect("dashboard");
+        assert_eq!(emu.joints(), q, "unlocking moves nothing");
         assert_eq!(status, "Safetystatus: NORMAL");
     }
 }
@@ -419,6 +410,42 @@ mod from_files {
             matches!(err, Error::Io(_)) && err.to_string().contains(&endpoint),
             "{err}"
         );
+    }
+
+    #[test]
+    fn the_cli_reads_its_config_and_names_a_bad_key() {
+        let dir = std::env::temp_dir().join(format!("rb-config-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let good = dir.join("bridge.toml");
+        std::fs::write(&good, "[pick]\npregrasp_m = 0.12\n[robot]\ntool_speed = 0.05\n").expect("write");
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_robot-bridge"))
+            .args(["pick", "--dry-run", "--depth"])
+            .arg(sample("depth.png"))
+            .arg("--camera")
+            .arg(sample("camera.json"))
+            .arg("--config")
+            .arg(&good)
+            .output()
+            .expect("runs");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            stdout.contains("movel(") && stdout.contains("v=0.050)"),
+            "{stdout}"
+        );
+        let bad = dir.join("bad.toml");
+        std::fs::write(&bad, "[robot]\njoint_speed = 7.0\n").expect("write");
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_robot-bridge"))
+            .args(["pick", "--dry-run", "--depth"])
+            .arg(sample("depth.png"))
+            .arg("--camera")
+            .arg(sample("camera.json"))
+            .arg("--config")
+            .arg(&bad)
+            .output()
+            .expect("runs");
+        assert!(!out.status.success());
+        assert!(String::from_utf8_lossy(&out.stderr).contains("robot.joint_speed"));
     }
 
     #[test]

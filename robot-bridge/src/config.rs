@@ -1,0 +1,274 @@
+//! The bridge's configuration file (TOML): the cell calibration, motion
+//! limits, the planner and what recovery the bridge may do on its own.
+//! `robot-bridge/bridge.toml` lists every key with its default.
+
+use std::path::Path;
+
+use mvgrasp_core::pose_from_parts;
+use nalgebra::Isometry3;
+use serde::Deserialize;
+
+use crate::error::{Error, Result};
+use crate::pick::PickConfig;
+
+/// A pose as `position` (m) and `orientation` (quaternion x, y, z, w).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseConfig {
+    /// x, y, z (m).
+    pub position: [f64; 3],
+    /// x, y, z, w (unit).
+    pub orientation: [f64; 4],
+}
+
+impl PoseConfig {
+    fn isometry(&self, field: &'static str) -> Result<Isometry3<f64>> {
+        pose_from_parts(field, self.position, self.orientation).map_err(|e| Error::InvalidInput {
+            field,
+            reason: e.to_string(),
+        })
+    }
+}
+
+/// The robot and its calibration.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RobotSection {
+    /// Controller host (RTDE 30004, scripts 30002, dashboard 29999, gripper 63352).
+    pub host: String,
+    /// Robot base in the world (cell calibration).
+    pub world_from_base: PoseConfig,
+    /// Gripper TCP relative to the flange (tool calibration).
+    pub flange_from_tcp: PoseConfig,
+    /// Joint moves: speed (rad/s).
+    pub joint_speed: f64,
+    /// Joint moves: acceleration (rad/s^2).
+    pub joint_accel: f64,
+    /// Linear moves: speed (m/s).
+    pub tool_speed: f64,
+    /// Linear moves: acceleration (m/s^2).
+    pub tool_accel: f64,
+    /// Timeout of one exchange with the controller (s).
+    pub io_timeout_s: f64,
+    /// Timeout of one chunk of arm motion (s).
+    pub motion_timeout_s: f64,
+}
+
+/// The pick itself.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PickSection {
+    /// Pre-grasp distance back along the approach (m).
+    pub pregrasp_m: f64,
+    /// Lift after closing (m).
+    pub lift_m: f64,
+    /// TCP pose over the basket where the object is released (world).
+    pub world_from_drop: PoseConfig,
+    /// Grasps asked of the planner (the best feasible one is picked).
+    pub max_grasps: usize,
+}
+
+/// Where grasps come from.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlannerSection {
+    /// The mvgrasp service, e.g. `http://127.0.0.1:50051`; unset: in-process baseline.
+    pub endpoint: Option<String>,
+    /// Deadline of one planning call (s).
+    pub timeout_s: f64,
+}
+
+/// Recovery the bridge may do by itself through the dashboard (29999).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RecoverySection {
+    /// After a protective stop, unlock it (the pick still ends; nothing moves).
+    pub unlock_protective_stop: bool,
+    /// Wait before unlocking (s; the controller refuses an unlock within 5 s of the stop).
+    pub unlock_after_s: f64,
+}
+
+/// The whole file.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct BridgeConfig {
+    /// `[robot]`.
+    pub robot: RobotSection,
+    /// `[pick]`.
+    pub pick: PickSection,
+    /// `[planner]`.
+    pub planner: PlannerSection,
+    /// `[recovery]`.
+    pub recovery: RecoverySection,
+}
+
+const DOWN: [f64; 4] = [1.0, 0.0, 0.0, 0.0]; // TCP z pointing down (180 deg about x)
+
+impl Default for BridgeConfig {
+    fn default() -> Self {
+        let pick = PickConfig::default();
+        Self {
+            robot: RobotSection {
+                host: "127.0.0.1".to_owned(),
+                world_from_base: PoseConfig {
+                    position: [0.0, 0.5, 0.0],
+                    orientation: [0.0, 0.0, 0.0, 1.0],
+                },
+                flange_from_tcp: PoseConfig {
+                    position: [0.0, 0.0, 0.233],
+                    orientation: [0.0, 0.0, 0.0, 1.0],
+                },
+                joint_speed: pick.joint_speed,
+                joint_accel: pick.joint_accel,
+                tool_speed: pick.tool_speed,
+                tool_accel: pick.tool_accel,
+                io_timeout_s: 2.0,
+                motion_timeout_s: 60.0,
+            },
+            pick: PickSection {
+                pregrasp_m: pick.pregrasp_m,
+                lift_m: pick.lift_m,
+                world_from_drop: PoseConfig {
+                    position: [0.45, 0.45, 0.3],
+                    orientation: DOWN,
+                },
+                max_grasps: 10,
+            },
+            planner: PlannerSection {
+                endpoint: None,
+                timeout_s: 5.0,
+            },
+            recovery: RecoverySection {
+                unlock_protective_stop: false,
+                unlock_after_s: 5.0,
+            },
+        }
+    }
+}
+
+// Each section's defaults are those of the whole file (so a file may give
+// only some keys of a section).
+impl Default for RobotSection {
+    fn default() -> Self {
+        BridgeConfig::default().robot
+    }
+}
+
+impl Default for PickSection {
+    fn default() -> Self {
+        BridgeConfig::default().pick
+    }
+}
+
+impl Default for PlannerSection {
+    fn default() -> Self {
+        BridgeConfig::default().planner
+    }
+}
+
+impl Default for RecoverySection {
+    fn default() -> Self {
+        BridgeConfig::default().recovery
+    }
+}
+
+fn bad(field: &'static str, reason: String) -> Error {
+    Error::InvalidInput { field, reason }
+}
+
+impl BridgeConfig {
+    /// Reads and validates `path`.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text =
+            std::fs::read_to_string(path).map_err(|e| bad("config", format!("{}: {e}", path.display())))?;
+        let config = Self::from_toml(&text).map_err(|e| bad("config", format!("{}: {e}", path.display())))?;
+        Ok(config)
+    }
+
+    /// Parses and validates TOML text; unknown keys are errors.
+    pub fn from_toml(text: &str) -> Result<Self> {
+        let config: Self = toml::from_str(text).map_err(|e| bad("config", e.to_string()))?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Checks every value, naming the key that is off. Speeds are capped well
+    /// under the UR5e's limits (pi rad/s, 1 m/s).
+    pub fn validate(&self) -> Result<()> {
+        let r = &self.robot;
+        for (field, value, max) in [
+            ("robot.joint_speed", r.joint_speed, std::f64::consts::PI),
+            ("robot.joint_accel", r.joint_accel, 10.0),
+            ("robot.tool_speed", r.tool_speed, 1.0),
+            ("robot.tool_accel", r.tool_accel, 5.0),
+            ("robot.io_timeout_s", r.io_timeout_s, 60.0),
+            ("robot.motion_timeout_s", r.motion_timeout_s, 600.0),
+            ("pick.pregrasp_m", self.pick.pregrasp_m, 0.5),
+            ("pick.lift_m", self.pick.lift_m, 0.5),
+            ("planner.timeout_s", self.planner.timeout_s, 60.0),
+        ] {
+            if !(value.is_finite() && value > 0.0 && value <= max) {
+                return Err(bad(field, format!("{value} is not in (0, {max}]")));
+            }
+        }
+        let wait = self.recovery.unlock_after_s;
+        if !(wait.is_finite() && (0.0..=60.0).contains(&wait)) {
+            return Err(bad(
+                "recovery.unlock_after_s",
+                format!("{wait} is not in [0, 60]"),
+            ));
+        }
+        if !(1..=100).contains(&self.pick.max_grasps) {
+            return Err(bad(
+                "pick.max_grasps",
+                format!("{} is not in 1..=100", self.pick.max_grasps),
+            ));
+        }
+        self.pick_config().map(|_| ())
+    }
+
+    /// The pick settings (calibration and limits) this file describes.
+    pub fn pick_config(&self) -> Result<PickConfig> {
+        Ok(PickConfig {
+            world_from_base: self.robot.world_from_base.isometry("robot.world_from_base")?,
+            flange_from_tcp: self.robot.flange_from_tcp.isometry("robot.flange_from_tcp")?,
+            pregrasp_m: self.pick.pregrasp_m,
+            lift_m: self.pick.lift_m,
+            world_from_drop: self.pick.world_from_drop.isometry("pick.world_from_drop")?,
+            joint_speed: self.robot.joint_speed,
+            joint_accel: self.robot.joint_accel,
+            tool_speed: self.robot.tool_speed,
+            tool_accel: self.robot.tool_accel,
+            ..PickConfig::default()
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_documented_file_states_the_defaults() {
+        let documented = BridgeConfig::from_toml(include_str!("../bridge.toml")).unwrap();
+        assert_eq!(documented, BridgeConfig::default());
+        let pick = documented.pick_config().unwrap();
+        assert_eq!(pick.flange_from_tcp, PickConfig::default().flange_from_tcp);
+    }
+
+    #[test]
+    fn bad_values_name_their_key() {
+        for (text, key) in [
+            ("[robot]\njoint_speed = 9.0\n", "robot.joint_speed"),
+            ("[robot]\nhots = \"x\"\n", "hots"),
+            (
+                "[pick]\nworld_from_drop = { position = [0, 0, 0.3], orientation = [0, 0, 0, 2] }\n",
+                "pick.world_from_drop",
+            ),
+            ("[recovery]\nunlock_after_s = -1.0\n", "recovery.unlock_after_s"),
+        ] {
+            let err = BridgeConfig::from_toml(text).unwrap_err().to_string();
+            assert!(err.contains(key), "{key}: {err}");
+        }
+    }
+}
