@@ -5,9 +5,10 @@
 use std::path::Path;
 
 use mvgrasp_core::pose_from_parts;
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Vector3};
 use serde::Deserialize;
 
+use crate::collision::BoxObstacle;
 use crate::error::{Error, Result};
 use crate::pick::PickConfig;
 
@@ -28,6 +29,16 @@ impl PoseConfig {
             reason: e.to_string(),
         })
     }
+}
+
+/// An axis-aligned box in the world (an obstacle of the cell).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxConfig {
+    /// Centre, world (m).
+    pub centre: [f64; 3],
+    /// Half sizes along world x, y, z (m).
+    pub half_extents_m: [f64; 3],
 }
 
 /// The robot and its calibration.
@@ -64,6 +75,8 @@ pub struct PickSection {
     pub lift_m: f64,
     /// TCP pose over the basket where the object is released (world).
     pub world_from_drop: PoseConfig,
+    /// The basket, an obstacle for the arm.
+    pub basket: BoxConfig,
     /// Grasps asked of the planner (the best feasible one is picked).
     pub max_grasps: usize,
 }
@@ -131,6 +144,10 @@ impl Default for BridgeConfig {
                 world_from_drop: PoseConfig {
                     position: [0.45, 0.45, 0.3],
                     orientation: DOWN,
+                },
+                basket: BoxConfig {
+                    centre: [0.45, 0.45, 0.05],
+                    half_extents_m: [0.15, 0.15, 0.05],
                 },
                 max_grasps: 10,
             },
@@ -218,6 +235,15 @@ impl BridgeConfig {
                 format!("{wait} is not in [0, 60]"),
             ));
         }
+        let b = &self.pick.basket;
+        if !(b.centre.iter().all(|v| v.is_finite())
+            && b.half_extents_m.iter().all(|&v| v.is_finite() && v > 0.0))
+        {
+            return Err(bad(
+                "pick.basket",
+                format!("{b:?}: a finite centre and positive half extents needed"),
+            ));
+        }
         if !(1..=100).contains(&self.pick.max_grasps) {
             return Err(bad(
                 "pick.max_grasps",
@@ -239,8 +265,19 @@ impl BridgeConfig {
             joint_accel: self.robot.joint_accel,
             tool_speed: self.robot.tool_speed,
             tool_accel: self.robot.tool_accel,
+            obstacles: vec![self.basket()],
             ..PickConfig::default()
         })
+    }
+
+    /// The basket as an obstacle.
+    pub fn basket(&self) -> BoxObstacle {
+        let b = &self.pick.basket;
+        BoxObstacle {
+            name: "basket".to_owned(),
+            world_from_box: Isometry3::translation(b.centre[0], b.centre[1], b.centre[2]),
+            half_extents_m: Vector3::from(b.half_extents_m),
+        }
     }
 }
 

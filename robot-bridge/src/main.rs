@@ -179,6 +179,14 @@ fn main() -> anyhow::Result<()> {
                 settings.robot.world_from_base.position = [p[0], p[1], p[2]];
             }
             if let Some(p) = basket {
+                // The basket moves with its drop pose.
+                let drop = settings.pick.world_from_drop.position;
+                let b = &mut settings.pick.basket.centre;
+                *b = [
+                    b[0] + p[0] - drop[0],
+                    b[1] + p[1] - drop[1],
+                    b[2] + p[2] - drop[2],
+                ];
                 settings.pick.world_from_drop.position = [p[0], p[1], p[2]];
             }
             if planner.is_some() {
@@ -259,10 +267,8 @@ fn pick(
         planned.objects.len(),
         planned.grasps.len()
     );
-    let config = PickConfig {
-        obstacles: vec![planned.table.clone()],
-        ..settings.pick_config()?
-    };
+    let mut config = settings.pick_config()?;
+    config.obstacles.push(planned.table.clone());
     let robot = settings.robot.host.as_str();
     let timeout = Duration::from_secs_f64(settings.robot.io_timeout_s);
     let mut rtde = if dry_run {

@@ -309,17 +309,14 @@ mod from_files {
         let planned = plan_locally(&scene, 10).expect("planned");
         assert_eq!(planned.objects.len(), 6);
         assert!(!planned.grasps.is_empty());
-        let config = PickConfig {
-            world_from_base: Isometry3::translation(0.0, 0.5, 0.0),
-            world_from_drop: Isometry3::from_parts(
-                Translation3::new(0.45, 0.45, 0.3),
-                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
-            ),
-            obstacles: vec![planned.table.clone()],
-            joint_speed: 3.0,
-            tool_speed: 0.5,
-            ..PickConfig::default()
-        };
+        // The documented defaults (base, drop pose, basket obstacle), faster for the test.
+        let mut config = robot_bridge::config::BridgeConfig::default()
+            .pick_config()
+            .expect("config");
+        assert_eq!(config.obstacles.len(), 1, "the basket");
+        config.obstacles.push(planned.table.clone());
+        config.joint_speed = 3.0;
+        config.tool_speed = 0.5;
         let plan = plan_pick(
             &Ur5e::default(),
             &config,
