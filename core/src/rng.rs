@@ -26,6 +26,23 @@ impl SplitMix64 {
         z ^ (z >> 31)
     }
 
+    /// A uniform number in `[0, 1)` (53 random bits).
+    pub fn next_f64(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+
+    /// A uniform number in `[lo, hi)`.
+    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.next_f64()
+    }
+
+    /// A standard normal number (Box-Muller, one of the pair).
+    pub fn gaussian(&mut self) -> f64 {
+        let u = 1.0 - self.next_f64(); // (0, 1]
+        let v = self.next_f64();
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+
     /// A uniform index in `0..n` (`n > 0`), by Lemire's multiply-shift.
     pub fn below(&mut self, n: usize) -> usize {
         ((u128::from(self.next_u64()) * n as u128) >> 64) as usize

@@ -1,0 +1,119 @@
+//! Frames as files: the 16-bit depth PNG + camera JSON that `mvgrasp plan`,
+//! the Python client and `robot-bridge pick` read, a 16-bit label PNG, and a
+//! preview PNG for people.
+
+use std::path::Path;
+
+use crate::camera::Frame;
+use crate::error::{Error, Result};
+use crate::scene::Scene;
+
+fn file_error(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::File {
+        path: path.display().to_string(),
+        reason: e.to_string(),
+    }
+}
+
+fn write_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    colour: png::ColorType,
+    depth: png::BitDepth,
+    data: &[u8],
+) -> Result<()> {
+    let file = std::fs::File::create(path).map_err(|e| file_error(path, e))?;
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width, height);
+    encoder.set_color(colour);
+    encoder.set_depth(depth);
+    let mut writer = encoder.write_header().map_err(|e| file_error(path, e))?;
+    writer.write_image_data(data).map_err(|e| file_error(path, e))
+}
+
+/// 16-bit grey PNG of `values` (PNG stores 16-bit samples big-endian).
+fn write_u16_png(path: &Path, width: u32, height: u32, values: &[u16]) -> Result<()> {
+    let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_be_bytes()).collect();
+    write_png(
+        path,
+        width,
+        height,
+        png::ColorType::Grayscale,
+        png::BitDepth::Sixteen,
+        &bytes,
+    )
+}
+
+/// Writes `depth.png`, `labels.png`, `camera.json` and `preview.png` into `dir`.
+pub fn write_frame(dir: &Path, scene: &Scene, frame: &Frame) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| file_error(dir, e))?;
+    let c = &frame.camera;
+    write_u16_png(&dir.join("depth.png"), c.width, c.height, &frame.depth_mm)?;
+    write_u16_png(&dir.join("labels.png"), c.width, c.height, &frame.labels)?;
+    let (t, q) = (
+        c.world_from_camera.translation.vector,
+        c.world_from_camera.rotation,
+    );
+    let k = c.intrinsics;
+    let z = f64::from(scene.table_z);
+    let camera = serde_json::json!({
+        "width": c.width, "height": c.height,
+        "intrinsics": { "fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy },
+        "world_from_camera": { "position": [t.x, t.y, t.z], "orientation": [q.i, q.j, q.k, q.w] },
+        "workspace": {
+            "min": [-f64::from(scene.table_half[0]), -f64::from(scene.table_half[1]), z - 0.05],
+            "max": [f64::from(scene.table_half[0]), f64::from(scene.table_half[1]), z + 0.5],
+        },
+        "scene": {
+            "scenario": scene.scenario.name(), "seed": scene.seed, "table_z": scene.table_z,
+            "objects": scene.objects.iter().enumerate().map(|(i, o)| serde_json::json!({
+                "label": 2 + i, "family": o.model.family.name(), "mass_kg": o.model.mass_kg,
+                "position": o.world_from_object.translation.to_array(),
+                "orientation": o.world_from_object.rotation.to_array(),
+            })).collect::<Vec<_>>(),
+        },
+    });
+    let path = dir.join("camera.json");
+    let text = serde_json::to_string_pretty(&camera).map_err(|e| file_error(&path, e))?;
+    std::fs::write(&path, text).map_err(|e| file_error(&path, e))?;
+    write_png(
+        &dir.join("preview.png"),
+        c.width,
+        c.height,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &preview(frame),
+    )
+}
+
+/// Depth in grey (near = bright), objects tinted by label, lost readings black.
+fn preview(frame: &Frame) -> Vec<u8> {
+    let valid = frame.depth_mm.iter().copied().filter(|&d| d > 0);
+    let (near, far) = valid.fold((u16::MAX, 0), |(lo, hi), d| (lo.min(d), hi.max(d)));
+    let span = f64::from(far.saturating_sub(near).max(1));
+    const TINTS: [[f64; 3]; 6] = [
+        [1.0, 0.45, 0.45],
+        [0.45, 1.0, 0.45],
+        [0.45, 0.6, 1.0],
+        [1.0, 0.9, 0.4],
+        [0.9, 0.5, 1.0],
+        [0.4, 1.0, 1.0],
+    ];
+    frame
+        .depth_mm
+        .iter()
+        .zip(&frame.labels)
+        .flat_map(|(&d, &label)| {
+            if d == 0 {
+                return [0, 0, 0];
+            }
+            let g = 235.0 - f64::from(d - near) / span * 190.0;
+            let tint = if label >= 2 {
+                TINTS[(label as usize - 2) % TINTS.len()]
+            } else {
+                [1.0; 3]
+            };
+            [(g * tint[0]) as u8, (g * tint[1]) as u8, (g * tint[2]) as u8]
+        })
+        .collect()
+}

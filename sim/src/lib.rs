@@ -1,0 +1,26 @@
+//! `mvgrasp-sim`: the synthetic data engine. Procedural objects
+//! ([`objects`]), scenes laid out per scenario and seed ([`scene`]), and a
+//! simulated depth camera with a consumer camera's noise ([`camera`]);
+//! frames are written in the files the planner's tools read ([`files`]).
+//!
+//! ```
+//! use mvgrasp_core::rng::SplitMix64;
+//! use mvgrasp_sim::{camera::{Camera, render}, objects::Family, scene::{Scene, Scenario}};
+//! let scene = Scene::generate(Scenario::Isolated, 1, &Family::ALL)?;
+//! let target = nalgebra::Vector3::new(0.0, 0.0, f64::from(scene.table_z));
+//! let camera = Camera::random(&mut SplitMix64::new(1), target, false);
+//! let frame = render(&scene, &camera, None);
+//! assert!(frame.labels.contains(&2)); // the object is in view
+//! # Ok::<(), mvgrasp_sim::Error>(())
+//! ```
+//!
+//! Still to come (issue 3): grasp labels, physics confirmation in rapier3d,
+//! piles, mesh import, training targets and the dataset writer.
+
+pub mod camera;
+mod error;
+pub mod files;
+pub mod objects;
+pub mod scene;
+
+pub use error::{Error, Result};

@@ -1,0 +1,211 @@
+//! The simulated camera against analytic shapes, its noise, and the planner's
+//! pipeline on simulated frames.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
+
+use mvgrasp_core::rng::SplitMix64;
+use mvgrasp_core::{
+    DepthEncoding, DepthFrame, GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig, SceneInput,
+    SensorInput, Workspace,
+};
+use mvgrasp_sim::camera::{Camera, NoiseModel, render};
+use mvgrasp_sim::objects::{Family, ObjectModel};
+use mvgrasp_sim::scene::{PlacedObject, Scenario, Scene};
+use nalgebra::Vector3;
+use parry3d::math::{Pose, Vector};
+use parry3d::shape::SharedShape;
+
+fn one_object(table_z: f32, model: ObjectModel, x: f32, y: f32) -> Scene {
+    let pose = Pose::from_translation(Vector::new(x, y, table_z));
+    Scene {
+        table_z,
+        table_half: [0.6, 0.5],
+        objects: vec![PlacedObject {
+            world_aabb: model.shape.compute_aabb(&pose),
+            model,
+            world_from_object: pose,
+        }],
+        scenario: Scenario::Isolated,
+        seed: 0,
+    }
+}
+
+fn top_down(table_z: f32, height_m: f64) -> Camera {
+    let target = Vector3::new(0.0, 0.0, f64::from(table_z));
+    Camera::looking_at(
+        target + Vector3::new(0.0, -1e-4, height_m),
+        target,
+        640,
+        480,
+        600.0,
+    )
+}
+
+#[test]
+fn ray_casts_hit_a_box_and_a_ball_where_geometry_says() {
+    let table_z = 0.3;
+    // A 6 x 4 x 10 cm box: its top 10 cm above the table, seen from 1 m above the table.
+    let boxed = ObjectModel::from_parts(
+        Family::Box,
+        vec![(
+            Pose::from_translation(Vector::new(0.0, 0.0, 0.05)),
+            SharedShape::cuboid(0.03, 0.02, 0.05),
+        )],
+    );
+    let frame = render(
+        &one_object(table_z, boxed, 0.0, 0.0),
+        &top_down(table_z, 1.0),
+        None,
+    );
+    let (w, h) = (640, 480);
+    let centre = (h / 2) * w + w / 2;
+    assert_eq!(frame.labels[centre], 2);
+    assert_eq!(frame.depth_mm[centre], 900);
+    // Its footprint: 6 cm at 0.9 m and 600 px focal length is 40 px across.
+    let row: Vec<u16> = frame.labels[(h / 2) * w..(h / 2 + 1) * w].to_vec();
+    let across = row.iter().filter(|&&l| l == 2).count();
+    assert!((39..=41).contains(&across), "{across} px");
+    // Beside it, the table at 1 m (off-axis pixels: optical-axis depth stays 1 m).
+    assert_eq!(frame.depth_mm[(h / 2) * w + 10], 1000);
+    assert_eq!(frame.labels[(h / 2) * w + 10], 1);
+
+    // A ball of radius 4 cm resting on the table: nearest point 8 cm up.
+    let ball = ObjectModel::from_parts(
+        Family::Ellipsoid,
+        vec![(
+            Pose::from_translation(Vector::new(0.0, 0.0, 0.04)),
+            SharedShape::ball(0.04),
+        )],
+    );
+    let frame = render(
+        &one_object(table_z, ball, 0.0, 0.0),
+        &top_down(table_z, 0.8),
+        None,
+    );
+    assert_eq!(frame.depth_mm[centre], 720);
+}
+
+#[test]
+fn noise_matches_its_model_on_a_flat_table() {
+    let table_z = 0.0;
+    let empty = Scene {
+        table_z,
+        table_half: [2.0, 2.0],
+        objects: Vec::new(),
+        scenario: Scenario::Isolated,
+        seed: 0,
+    };
+    let camera = top_down(table_z, 1.0);
+    let clean = render(&empty, &camera, None);
+    let model = NoiseModel::default();
+    let noisy = render(&empty, &camera, Some((&model, &mut SplitMix64::new(4))));
+    let errors: Vec<f64> = clean
+        .depth_mm
+        .iter()
+        .zip(&noisy.depth_mm)
+        .filter(|(c, n)| **c > 0 && **n > 0)
+        .map(|(c, n)| (f64::from(*n) - f64::from(*c)) / 1000.0)
+        .collect();
+    let n = errors.len() as f64;
+    let mean = errors.iter().sum::<f64>() / n;
+    let sd = (errors.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / n).sqrt();
+    // sigma(1 m) = 1.88 mm, plus the 1 mm quantisation of both frames (~0.41 mm rms).
+    let expected = (model.sigma_m(1.0).powi(2) + 2.0 * 0.001f64.powi(2) / 12.0).sqrt();
+    assert!(mean.abs() < 5e-5, "mean error {mean}");
+    assert!((sd / expected - 1.0).abs() < 0.05, "sd {sd} vs {expected}");
+    // A flat table has no depth edges: nothing is dropped.
+    assert_eq!(errors.len(), clean.depth_mm.iter().filter(|&&d| d > 0).count());
+}
+
+#[test]
+fn the_same_seed_renders_the_same_frame() {
+    let scene = Scene::generate(Scenario::Packed, 11, &Family::ALL).unwrap();
+    let camera = Camera::random(
+        &mut SplitMix64::new(11),
+        Vector3::new(0.0, 0.0, f64::from(scene.table_z)),
+        false,
+    );
+    let model = NoiseModel::default();
+    let a = render(&scene, &camera, Some((&model, &mut SplitMix64::new(2))));
+    let b = render(&scene, &camera, Some((&model, &mut SplitMix64::new(2))));
+    let c = render(&scene, &camera, Some((&model, &mut SplitMix64::new(3))));
+    assert_eq!(a.depth_mm, b.depth_mm);
+    assert_ne!(a.depth_mm, c.depth_mm);
+    assert_eq!(a.labels, c.labels, "labels come from the noiseless geometry");
+}
+
+#[test]
+fn cameras_stay_in_the_recommended_range() {
+    let mut rng = SplitMix64::new(9);
+    let target = Vector3::new(0.1, -0.2, 0.7);
+    for _ in 0..200 {
+        let c = Camera::random(&mut rng, target, false);
+        let offset = c.world_from_camera.translation.vector - target;
+        let d = offset.norm();
+        let elevation = (offset.z / d).asin().to_degrees();
+        assert!((0.6..=1.2).contains(&d), "{d}");
+        assert!((30.0..=60.0).contains(&elevation), "{elevation}");
+        // It looks at the target: the optical axis passes through it.
+        let axis = c.world_from_camera.rotation * Vector3::z();
+        assert!((axis.dot(&(-offset / d)) - 1.0).abs() < 1e-9);
+    }
+}
+
+/// The planner's pipeline finds the objects of simulated, noisy frames.
+#[test]
+fn the_pipeline_finds_simulated_objects() {
+    let mut net = MomentsNet::default();
+    let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).unwrap();
+    let model = NoiseModel::default();
+    let (mut visible, mut found) = (0, 0);
+    for (scenario, seeds) in [(Scenario::Isolated, 0..8u64), (Scenario::Clutter, 0..3)] {
+        for seed in seeds {
+            let scene = Scene::generate(scenario, seed, &Family::ALL).unwrap();
+            let z = f64::from(scene.table_z);
+            let mut rng = SplitMix64::new(seed + 100);
+            let camera = Camera::random(&mut rng, Vector3::new(0.0, 0.0, z), false);
+            let frame = render(&scene, &camera, Some((&model, &mut rng)));
+            let bytes: Vec<u8> = frame.depth_mm.iter().flat_map(|d| d.to_le_bytes()).collect();
+            let input = SceneInput {
+                sensor: SensorInput::Depth(DepthFrame {
+                    width: camera.width,
+                    height: camera.height,
+                    encoding: DepthEncoding::U16Millimetres,
+                    data: &bytes,
+                    intrinsics: camera.intrinsics,
+                }),
+                world_from_camera: camera.world_from_camera,
+                workspace: Workspace::new([-0.6, -0.5, z - 0.05], [0.6, 0.5, z + 0.5]).unwrap(),
+            };
+            let plan = planner.plan(&input, &PlanOptions::default(), &mut net).unwrap();
+            // Objects with at least 200 pixels in view, more than 1 cm above the table.
+            for label in 2..2 + scene.objects.len() as u16 {
+                let points: Vec<_> = frame
+                    .labelled_points(label)
+                    .into_iter()
+                    .filter(|p| p.z > z + 0.01)
+                    .collect();
+                if points.len() < 200 {
+                    continue;
+                }
+                visible += 1;
+                let centroid = points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64;
+                let near = plan
+                    .objects
+                    .iter()
+                    .any(|o| (o.frame.world_from_object.translation.vector - centroid).norm() < 0.02);
+                found += usize::from(near);
+                if scenario == Scenario::Isolated {
+                    assert!(near, "isolated seed {seed}: the object was not found");
+                    assert_eq!(plan.objects.len(), 1, "isolated seed {seed}");
+                }
+            }
+        }
+    }
+    let share = found as f64 / visible as f64;
+    println!(
+        "found {found} of {visible} visible objects ({:.0}%)",
+        share * 100.0
+    );
+    assert!(share >= 0.85, "found {found} of {visible} visible objects");
+}
