@@ -20,6 +20,7 @@
 pub mod camera;
 mod error;
 pub mod files;
+pub mod grasp;
 pub mod objects;
 pub mod scene;
 

@@ -209,3 +209,110 @@ fn the_pipeline_finds_simulated_objects() {
     );
     assert!(share >= 0.85, "found {found} of {visible} visible objects");
 }
+
+mod grasp_labels {
+    use mvgrasp_sim::grasp::{GraspLabel, GripperModel, label_grasp};
+    use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion, Vector3 as V3};
+
+    use super::*;
+
+    /// A top-down grasp at height `z` closing along world `closing` (unit, horizontal).
+    fn top_down_grasp(x: f64, y: f64, z: f64, closing: V3<f64>) -> Isometry3<f64> {
+        let approach = V3::new(0.0, 0.0, -1.0);
+        let y_axis = approach.cross(&closing);
+        let r = Rotation3::from_basis_unchecked(&[closing, y_axis, approach]);
+        Isometry3::from_parts(
+            Translation3::new(x, y, z),
+            UnitQuaternion::from_rotation_matrix(&r),
+        )
+    }
+
+    /// A 6 x 4 x 10 cm box (x by y by z) standing at the origin of a table at z = 0.
+    fn box_scene(size: [f32; 3]) -> Scene {
+        let model = ObjectModel::from_parts(
+            Family::Box,
+            vec![(
+                Pose::from_translation(Vector::new(0.0, 0.0, size[2] / 2.0)),
+                SharedShape::cuboid(size[0] / 2.0, size[1] / 2.0, size[2] / 2.0),
+            )],
+        );
+        one_object(0.0, model, 0.0, 0.0)
+    }
+
+    #[test]
+    fn across_the_narrow_side_holds() {
+        let scene = box_scene([0.06, 0.04, 0.10]);
+        let g = GripperModel::robotiq_2f_140();
+        // Fingertips 4 cm below the top (z = 0.06): the whole pad on the box,
+        // closing along y (4 cm).
+        let label = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, 0.06, V3::y()), 0.04, &g);
+        let GraspLabel::Positive {
+            score,
+            contact_width_m,
+        } = label
+        else {
+            panic!("{label:?}");
+        };
+        assert!((contact_width_m - 0.04).abs() < 1e-3, "{contact_width_m}");
+        assert!((score - 1.0).abs() < 1e-6, "{score}");
+        // Only 2 cm in: 3 of the pad's 5 rows touch, so it scores less.
+        let shallow = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, 0.08, V3::y()), 0.04, &g);
+        assert!(
+            matches!(shallow, GraspLabel::Positive { score, .. } if (score - 0.8).abs() < 1e-6),
+            "{shallow:?}"
+        );
+        // Across the 6 cm side holds too.
+        assert!(label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, 0.08, V3::x()), 0.06, &g).is_positive());
+    }
+
+    #[test]
+    fn edges_wide_sides_air_and_the_table_do_not() {
+        let scene = box_scene([0.06, 0.04, 0.10]);
+        let g = GripperModel::robotiq_2f_140();
+        // Closing along the diagonal: the pads meet the vertical edges at 45+ degrees.
+        let diagonal = V3::new(1.0, 1.0, 0.0).normalize();
+        let label = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, 0.08, diagonal), 0.07, &g);
+        assert!(
+            matches!(label, GraspLabel::NotAntipodal { worst_angle_deg } if worst_angle_deg > 30.0),
+            "{label:?}"
+        );
+        // Wider than the stroke.
+        let wide = box_scene([0.20, 0.16, 0.10]);
+        let label = label_grasp(&wide, 0, &top_down_grasp(0.0, 0.0, 0.08, V3::y()), 0.16, &g);
+        assert_eq!(label, GraspLabel::TooWide);
+        // Beside the object: the pads close on air.
+        let label = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.2, 0.08, V3::y()), 0.04, &g);
+        assert_eq!(label, GraspLabel::Missed);
+        // So low the fingertips are in the table.
+        let label = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, -0.005, V3::y()), 0.04, &g);
+        assert!(
+            matches!(&label, GraspLabel::Collision { what } if what.starts_with("table")),
+            "{label:?}"
+        );
+        // 1 cm above the table the pads clear it, but the palm meets the box top.
+        let label = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, 0.01, V3::y()), 0.04, &g);
+        assert!(
+            matches!(&label, GraspLabel::Collision { what } if what == "the object (palm)"),
+            "{label:?}"
+        );
+    }
+
+    #[test]
+    fn a_neighbour_in_the_way_is_a_collision() {
+        let mut scene = box_scene([0.06, 0.04, 0.10]);
+        // A second box 3 cm beside the first along y, inside the pads' opening path.
+        let other = scene.objects[0].clone();
+        let pose = Pose::from_translation(Vector::new(0.0, 0.055, 0.0));
+        scene.objects.push(mvgrasp_sim::scene::PlacedObject {
+            world_aabb: other.model.shape.compute_aabb(&pose),
+            world_from_object: pose,
+            ..other
+        });
+        let g = GripperModel::robotiq_2f_140();
+        let label = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, 0.08, V3::y()), 0.04, &g);
+        assert!(
+            matches!(&label, GraspLabel::Collision { what } if what.contains("neighbour 1")),
+            "{label:?}"
+        );
+    }
+}

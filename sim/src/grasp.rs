@@ -1,0 +1,247 @@
+//! Analytic grasp labels: one 6-DoF parallel-jaw grasp against a scene,
+//! with a parametric gripper (default Robotiq 2F-140).
+//!
+//! The grasp frame is DESIGN.md's: origin midway between the fingertips, +z
+//! the approach (into the object), +x the closing direction. The pads span
+//! `z` in `[-pad_depth, 0]`; the palm sits behind them. A grasp is checked
+//! the way the gripper would meet it:
+//!
+//! 1. **Open**: pads opened to `width + clearance` (at most the stroke) and
+//!    the palm must touch nothing: not the object, not a neighbour, not the
+//!    table. When the pads at full stroke still cut the object, it is too
+//!    wide.
+//! 2. **Close**: a 5 x 5 grid of rays from each pad's inner face, along the
+//!    closing direction, finds the first surface each pad meets. A pad that
+//!    meets a neighbour before the object collides; pads that meet nothing
+//!    miss.
+//! 3. **Antipodal**: the contact normals of both pads must lie inside the
+//!    friction cone (`atan(mu)`) around the closing direction.
+//!
+//! The score (for positives) combines the paper's terms: the share of pad
+//! rays that meet the object (how much of the object is between the
+//! fingers) and how well the contact normals agree with the closing
+//! direction. The third term, the distance to the view centre, belongs to the
+//! view and is added where views are labelled.
+
+use nalgebra::Isometry3;
+use parry3d::math::{Pose, Rotation, Vector};
+use parry3d::query::{Ray, intersection_test};
+use parry3d::shape::{Cuboid, Shape};
+
+use crate::scene::Scene;
+
+/// A parallel-jaw gripper, as the labels see it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GripperModel {
+    /// Largest opening (m).
+    pub max_width_m: f32,
+    /// Pad extent across the closing direction (m).
+    pub pad_width_m: f32,
+    /// Pad extent along the approach (m).
+    pub pad_depth_m: f32,
+    /// Pad thickness along the closing direction (m).
+    pub pad_thickness_m: f32,
+    /// Palm (the gripper body behind the pads): depth along the approach (m).
+    pub palm_depth_m: f32,
+    /// Palm extent across the closing direction (m).
+    pub palm_width_m: f32,
+    /// Opening beyond the grasp width before closing (m).
+    pub clearance_m: f32,
+    /// Friction coefficient of pad and object.
+    pub friction: f32,
+}
+
+impl GripperModel {
+    /// Robotiq 2F-140: 0-140 mm stroke, pads 27 mm wide and about 40 mm deep
+    /// (datasheet), body about 75 mm wide.
+    pub fn robotiq_2f_140() -> Self {
+        Self {
+            max_width_m: 0.14,
+            pad_width_m: 0.027,
+            pad_depth_m: 0.04,
+            pad_thickness_m: 0.01,
+            palm_depth_m: 0.05,
+            palm_width_m: 0.075,
+            clearance_m: 0.02,
+            friction: 0.5,
+        }
+    }
+}
+
+/// What a grasp comes to.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GraspLabel {
+    /// It holds, analytically.
+    Positive {
+        /// In [0, 1].
+        score: f32,
+        /// Opening between the contacts (m).
+        contact_width_m: f32,
+    },
+    /// The object is wider than the stroke where the pads are.
+    TooWide,
+    /// A pad or the palm hits something before closing (`what`: table,
+    /// object, neighbour N), or a pad meets a neighbour first while closing.
+    Collision {
+        /// What was hit.
+        what: String,
+    },
+    /// The pads close on nothing of the object.
+    Missed,
+    /// A contact normal lies outside the friction cone (e.g. an edge or corner).
+    NotAntipodal {
+        /// The larger angle between a contact normal and the closing direction (deg).
+        worst_angle_deg: f32,
+    },
+}
+
+impl GraspLabel {
+    /// True for [`GraspLabel::Positive`].
+    pub fn is_positive(&self) -> bool {
+        matches!(self, Self::Positive { .. })
+    }
+}
+
+fn pose_of(iso: &Isometry3<f64>) -> Pose {
+    let t = iso.translation.vector;
+    let q = iso.rotation.quaternion();
+    Pose::from_parts(
+        Vector::new(t.x as f32, t.y as f32, t.z as f32),
+        Rotation::from_xyzw(q.i as f32, q.j as f32, q.k as f32, q.w as f32).normalize(),
+    )
+}
+
+/// Rays per pad side.
+const GRID: usize = 5;
+
+/// Labels the grasp `world_from_grasp` of opening `width_m` on object
+/// `target` of `scene`.
+pub fn label_grasp(
+    scene: &Scene,
+    target: usize,
+    world_from_grasp: &Isometry3<f64>,
+    width_m: f64,
+    gripper: &GripperModel,
+) -> GraspLabel {
+    let g = gripper;
+    let grasp = pose_of(world_from_grasp);
+    let width = width_m as f32;
+    let opening = (width + g.clearance_m).min(g.max_width_m);
+    let half_pad = Vector::new(g.pad_thickness_m / 2.0, g.pad_width_m / 2.0, g.pad_depth_m / 2.0);
+    let pad = Cuboid::new(half_pad);
+    let pad_at = |side: f32| {
+        grasp
+            * Pose::from_translation(Vector::new(
+                side * (opening / 2.0 + g.pad_thickness_m / 2.0),
+                0.0,
+                -g.pad_depth_m / 2.0,
+            ))
+    };
+    let palm = Cuboid::new(Vector::new(
+        opening / 2.0 + g.pad_thickness_m,
+        g.palm_width_m / 2.0,
+        g.palm_depth_m / 2.0,
+    ));
+    let palm_pose =
+        grasp * Pose::from_translation(Vector::new(0.0, 0.0, -g.pad_depth_m - g.palm_depth_m / 2.0));
+    // The table as a thick slab under its top.
+    let table = Cuboid::new(Vector::new(scene.table_half[0], scene.table_half[1], 0.5));
+    let table_pose = Pose::from_translation(Vector::new(0.0, 0.0, scene.table_z - 0.5));
+    let hits = |pose: &Pose, shape: &dyn Shape, other_pose: &Pose, other: &dyn Shape| {
+        intersection_test(pose, shape, other_pose, other).is_ok_and(|i| i.intersecting)
+    };
+
+    // 1. Open.
+    for (name, part_pose, part) in [
+        ("left pad", pad_at(-1.0), pad),
+        ("right pad", pad_at(1.0), pad),
+        ("palm", palm_pose, palm),
+    ] {
+        if hits(&part_pose, &part, &table_pose, &table) {
+            return GraspLabel::Collision {
+                what: format!("table ({name})"),
+            };
+        }
+        for (i, o) in scene.objects.iter().enumerate() {
+            if hits(&part_pose, &part, &o.world_from_object, o.model.shape.as_ref()) {
+                if i == target && name != "palm" && opening >= g.max_width_m {
+                    return GraspLabel::TooWide;
+                }
+                let what = if i == target {
+                    "the object".to_owned()
+                } else {
+                    format!("neighbour {i}")
+                };
+                return GraspLabel::Collision {
+                    what: format!("{what} ({name})"),
+                };
+            }
+        }
+    }
+
+    // 2. Close: rays from each pad's inner face along the closing direction.
+    let closing = grasp.rotation * Vector::X;
+    let mut contact = [(f32::INFINITY, Vector::ZERO); 2];
+    let mut object_hits = 0usize;
+    for (k, side) in [-1.0f32, 1.0].into_iter().enumerate() {
+        let dir = closing * -side; // the left pad (-x) closes towards +x
+        for a in 0..GRID {
+            for b in 0..GRID {
+                let y = (a as f32 / (GRID - 1) as f32 - 0.5) * g.pad_width_m * 0.9;
+                let z = -(b as f32 / (GRID - 1) as f32) * g.pad_depth_m * 0.95 - 0.001;
+                let origin = grasp * Vector::new(side * opening / 2.0, y, z);
+                let ray = Ray::new(origin, dir);
+                let mut nearest = (opening, None::<usize>, Vector::ZERO);
+                for (i, o) in scene.objects.iter().enumerate() {
+                    if let Some(hit) =
+                        o.model
+                            .shape
+                            .cast_ray_and_get_normal(&o.world_from_object, &ray, nearest.0, true)
+                    {
+                        if hit.time_of_impact < nearest.0 {
+                            nearest = (hit.time_of_impact, Some(i), hit.normal);
+                        }
+                    }
+                }
+                match nearest.1 {
+                    Some(i) if i == target => {
+                        object_hits += 1;
+                        if nearest.0 < contact[k].0 {
+                            contact[k] = (nearest.0, nearest.2);
+                        }
+                    }
+                    Some(i) => {
+                        return GraspLabel::Collision {
+                            what: format!("neighbour {i} (closing)"),
+                        };
+                    }
+                    None => {}
+                }
+            }
+        }
+    }
+    if contact.iter().any(|(t, _)| !t.is_finite()) {
+        return GraspLabel::Missed;
+    }
+    let contact_width = opening - contact[0].0 - contact[1].0;
+
+    // 3. Antipodal: each normal opposes its pad's closing motion within the cone.
+    let cone = g.friction.atan();
+    let mut worst = 0.0f32;
+    for (k, side) in [-1.0f32, 1.0].into_iter().enumerate() {
+        let towards_pad = closing * side; // a surface facing the pad at +-x
+        let angle = contact[k].1.normalize().dot(towards_pad).clamp(-1.0, 1.0).acos();
+        worst = worst.max(angle);
+    }
+    if worst > cone {
+        return GraspLabel::NotAntipodal {
+            worst_angle_deg: worst.to_degrees(),
+        };
+    }
+    let coverage = object_hits as f32 / (2 * GRID * GRID) as f32;
+    let alignment = 1.0 - worst / cone;
+    GraspLabel::Positive {
+        score: (0.5 * coverage + 0.5 * alignment).clamp(0.0, 1.0),
+        contact_width_m: contact_width,
+    }
+}
