@@ -193,14 +193,12 @@ pub fn label_grasp(
                 let ray = Ray::new(origin, dir);
                 let mut nearest = (opening, None::<usize>, Vector::ZERO);
                 for (i, o) in scene.objects.iter().enumerate() {
-                    if let Some(hit) =
+                    let hit =
                         o.model
                             .shape
-                            .cast_ray_and_get_normal(&o.world_from_object, &ray, nearest.0, true)
-                    {
-                        if hit.time_of_impact < nearest.0 {
-                            nearest = (hit.time_of_impact, Some(i), hit.normal);
-                        }
+                            .cast_ray_and_get_normal(&o.world_from_object, &ray, nearest.0, true);
+                    if let Some(hit) = hit.filter(|h| h.time_of_impact < nearest.0) {
+                        nearest = (hit.time_of_impact, Some(i), hit.normal);
                     }
                 }
                 match nearest.1 {
