@@ -303,7 +303,7 @@ mod grasp_labels {
         // A second box 3 cm beside the first along y, inside the pads' opening path.
         let other = scene.objects[0].clone();
         let pose = Pose::from_translation(Vector::new(0.0, 0.055, 0.0));
-        scene.objects.push(mvgrasp_sim::scene::PlacedObject {
+        scene.objects.push(PlacedObject {
             world_aabb: other.model.shape.compute_aabb(&pose),
             world_from_object: pose,
             ..other
