@@ -23,5 +23,6 @@ pub mod files;
 pub mod grasp;
 pub mod objects;
 pub mod scene;
+pub mod targets;
 
 pub use error::{Error, Result};

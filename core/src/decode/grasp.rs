@@ -100,10 +100,6 @@ pub fn decode_view(
         channel(Channel::Sin2Phi),
         channel(Channel::Width),
     );
-    let world_from_object = placement.world_from_object;
-    let world_from_view = world_from_object.rotation.to_rotation_matrix().matrix() * view.object_from_view;
-    let approach = world_from_view.column(2).into_owned();
-
     let mut grasps = Vec::new();
     let peaks = smoothed_peaks(
         channel(Channel::Quality),
@@ -123,35 +119,12 @@ pub fn decode_view(
         {
             continue;
         }
-        let Some(surface_z) = view.nearest_depth_within(u, v, config.surface_radius_m) else {
-            continue;
-        };
         let phi = 0.5 * f64::from(s).atan2(f64::from(c));
-        let closing = (world_from_view * Vector3::new(phi.cos(), phi.sin(), 0.0)).normalize();
-        let surface = world_from_object
-            * nalgebra::Point3::from(view.point_in_object(
-                u as f64 + 0.5,
-                v as f64 + 0.5,
-                f64::from(surface_z),
-            ));
-        let Some(insertion) = clear_of_table(
-            &surface.coords,
-            &closing,
-            &approach,
-            width_m,
-            gripper,
-            table,
-            config,
-        ) else {
+        let Some(world_from_grasp) = grasp_at(placement, u, v, phi, width_m, gripper, table, config) else {
             continue;
         };
-        let origin = surface.coords + insertion * approach;
-        let rotation = Matrix3::from_columns(&[closing, approach.cross(&closing), approach]);
-        let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rotation));
-        // Renormalise: the product of two rotations drifts from unit norm at 1e-16.
-        let rotation = UnitQuaternion::new_normalize(rotation.into_inner());
         grasps.push(Grasp {
-            world_from_grasp: Isometry3::from_parts(Translation3::from(origin), rotation),
+            world_from_grasp,
             width_m,
             quality: q,
             object_id: placement.object_id,
@@ -161,6 +134,49 @@ pub fn decode_view(
         });
     }
     grasps
+}
+
+/// The 6-DoF grasp that view pixel `(u, v)`, image angle `phi_rad` and
+/// opening `width_m` stand for, as the planner decodes it: the nearest
+/// surface within `config.surface_radius_m` of the pixel, the view's viewing
+/// direction as the approach, fingertips inserted past the surface as far as
+/// the table allows. `None` when no surface is near the pixel or the pads
+/// cannot clear the table. The simulator labels candidates through this
+/// same function, so training targets and serving agree.
+#[allow(clippy::too_many_arguments)]
+pub fn grasp_at(
+    placement: &ViewPlacement<'_>,
+    u: usize,
+    v: usize,
+    phi_rad: f64,
+    width_m: f64,
+    gripper: &Gripper,
+    table: &TablePlane,
+    config: &DecodeConfig,
+) -> Option<Isometry3<f64>> {
+    let view = placement.view;
+    let world_from_object = placement.world_from_object;
+    let world_from_view = world_from_object.rotation.to_rotation_matrix().matrix() * view.object_from_view;
+    let approach = world_from_view.column(2).into_owned();
+    let surface_z = view.nearest_depth_within(u, v, config.surface_radius_m)?;
+    let closing = (world_from_view * Vector3::new(phi_rad.cos(), phi_rad.sin(), 0.0)).normalize();
+    let surface = world_from_object
+        * nalgebra::Point3::from(view.point_in_object(u as f64 + 0.5, v as f64 + 0.5, f64::from(surface_z)));
+    let insertion = clear_of_table(
+        &surface.coords,
+        &closing,
+        &approach,
+        width_m,
+        gripper,
+        table,
+        config,
+    )?;
+    let origin = surface.coords + insertion * approach;
+    let rotation = Matrix3::from_columns(&[closing, approach.cross(&closing), approach]);
+    let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rotation));
+    // Renormalise: the product of two rotations drifts from unit norm at 1e-16.
+    let rotation = UnitQuaternion::new_normalize(rotation.into_inner());
+    Some(Isometry3::from_parts(Translation3::from(origin), rotation))
 }
 
 /// The insertion (<= `config.insertion_m`) that keeps every pad corner at

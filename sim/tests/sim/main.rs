@@ -316,3 +316,88 @@ mod grasp_labels {
         );
     }
 }
+
+mod targets {
+    use mvgrasp_core::{Channel, ViewAxis};
+    use mvgrasp_sim::grasp::GripperModel;
+    use mvgrasp_sim::targets::{TargetConfig, label_frame};
+
+    use super::*;
+
+    fn labelled(size: [f32; 3]) -> Vec<mvgrasp_sim::targets::LabelledView> {
+        let model = ObjectModel::from_parts(
+            Family::Box,
+            vec![(
+                Pose::from_translation(Vector::new(0.0, 0.0, size[2] / 2.0)),
+                SharedShape::cuboid(size[0] / 2.0, size[1] / 2.0, size[2] / 2.0),
+            )],
+        );
+        let scene = one_object(0.2, model, 0.0, 0.0);
+        let target = Vector3::new(0.0, 0.0, 0.2);
+        let camera = Camera::looking_at(target + Vector3::new(0.5, -0.4, 0.5), target, 640, 480, 600.0);
+        let mut rng = SplitMix64::new(1);
+        let frame = render(&scene, &camera, Some((&NoiseModel::default(), &mut rng)));
+        let net = MomentsNet::default();
+        let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).unwrap();
+        label_frame(
+            &scene,
+            &frame,
+            &planner,
+            &GripperModel::robotiq_2f_140(),
+            &TargetConfig::default(),
+            &mut rng,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn a_graspable_box_gets_consistent_targets_and_a_wide_one_none_from_above() {
+        let contract = MomentsNet::default().contract().clone();
+        let l = contract.input_size_px;
+        let (q, c, s, w) = (
+            contract.channel_index(Channel::Quality),
+            contract.channel_index(Channel::Cos2Phi),
+            contract.channel_index(Channel::Sin2Phi),
+            contract.channel_index(Channel::Width),
+        );
+        let views = labelled([0.06, 0.04, 0.10]);
+        assert_eq!(views.len(), 3, "top, front and side views of the one object");
+        for v in &views {
+            println!("{:?}: {} of {} candidates positive", v.axis, v.positives, v.candidates);
+        }
+        let top = views.iter().find(|v| v.axis == ViewAxis::Top).unwrap();
+        assert!(
+            top.positives > 20,
+            "{} of {} candidates",
+            top.positives,
+            top.candidates
+        );
+        for view in &views {
+            assert_eq!(view.object, 0);
+            for i in 0..l * l {
+                let quality = view.maps[q * l * l + i];
+                let (cos2, sin2, width) = (
+                    view.maps[c * l * l + i],
+                    view.maps[s * l * l + i],
+                    view.maps[w * l * l + i],
+                );
+                assert!((0.0..=1.0).contains(&quality));
+                if quality > 0.0 {
+                    assert!((cos2 * cos2 + sin2 * sin2 - 1.0).abs() < 1e-4);
+                    let width_m = width * contract.width_scale_m;
+                    assert!(width_m > 0.0 && width_m <= 0.14, "{width_m}");
+                    assert!(
+                        view.image[i] > 0.0 || quality < 1.0,
+                        "painted only on or next to the object"
+                    );
+                } else {
+                    assert_eq!((cos2, sin2, width), (0.0, 0.0, 0.0));
+                }
+            }
+        }
+        // 20 x 16 cm seen from above: both ways across exceed the 14 cm stroke.
+        let wide = labelled([0.20, 0.16, 0.10]);
+        let top = wide.iter().find(|v| v.axis == ViewAxis::Top).unwrap();
+        assert_eq!(top.positives, 0, "of {} candidates", top.candidates);
+    }
+}

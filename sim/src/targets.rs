@@ -1,0 +1,280 @@
+//! Training targets: each rendered view of each detected object, with
+//! per-pixel quality, cos 2phi, sin 2phi and width maps from analytic grasp
+//! labels.
+//!
+//! The views come from `mvgrasp-core` run on the rendered (noisy) frame, the
+//! code that serves. Candidate grasps sit on a pixel grid over each
+//! silhouette, at `angles` image angles, opened to the silhouette's extent
+//! along the closing direction plus a margin. Each becomes a 6-DoF grasp
+//! through `core::decode::grasp_at`, the function the planner decodes with,
+//! and is labelled by [`crate::grasp::label_grasp`]. Positives are refined by
+//! a short simulated annealing over angle and width. A positive's score is
+//! scaled by its distance to the view centre (the paper's third term: 1 at
+//! the centre, 0.75 at the edge).
+//!
+//! Painting: every positive writes a disc of `paint_radius_px` around its
+//! pixel. Quality is its score, and the angle and width channels are its
+//! own; where discs overlap, the higher quality wins. Pixels without a
+//! positive are 0 in every channel, so quality 0 means "no grasp here".
+
+use mvgrasp_core::decode::{ViewPlacement, grasp_at};
+use mvgrasp_core::rng::SplitMix64;
+use mvgrasp_core::{
+    Channel, DepthEncoding, DepthFrame, GraspMaps, GraspNet, Gripper, ModelContract, PlanOptions, Planner,
+    SceneInput, SensorInput, ViewAxis, ViewBatch, ViewPolicy, Workspace,
+};
+
+use crate::camera::Frame;
+use crate::error::{Error, Result};
+use crate::grasp::{GraspLabel, GripperModel, label_grasp};
+use crate::objects::Family;
+use crate::scene::Scene;
+
+/// How candidates are drawn and targets painted.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TargetConfig {
+    /// Candidate pixels every `stride_px` along rows and columns.
+    pub stride_px: usize,
+    /// Candidate image angles per pixel, spread over 180 degrees.
+    pub angles: usize,
+    /// Opening beyond the silhouette's extent (m).
+    pub width_margin_m: f64,
+    /// Disc painted per positive (px).
+    pub paint_radius_px: f32,
+    /// Annealing steps per positive (0: none).
+    pub anneal_steps: usize,
+}
+
+impl Default for TargetConfig {
+    fn default() -> Self {
+        Self {
+            stride_px: 3,
+            angles: 8,
+            width_margin_m: 0.01,
+            paint_radius_px: 1.6,
+            anneal_steps: 6,
+        }
+    }
+}
+
+/// One view with its targets.
+#[derive(Debug, Clone)]
+pub struct LabelledView {
+    /// Index of the scene object it shows.
+    pub object: usize,
+    /// That object's family.
+    pub family: Family,
+    /// Which view.
+    pub axis: ViewAxis,
+    /// Network input (`size x size`, the contract's normalisation).
+    pub image: Vec<f32>,
+    /// Targets, `4 x size x size` in the contract's channel order.
+    pub maps: Vec<f32>,
+    /// Candidates labelled.
+    pub candidates: usize,
+    /// Positives among them.
+    pub positives: usize,
+}
+
+/// A network that predicts nothing: the pipeline's views, without inference.
+struct NoNet(ModelContract);
+
+impl GraspNet for NoNet {
+    fn contract(&self) -> &ModelContract {
+        &self.0
+    }
+    fn infer(&mut self, batch: &ViewBatch) -> mvgrasp_core::Result<GraspMaps> {
+        Ok(GraspMaps {
+            size_px: batch.size_px,
+            len: batch.len,
+            data: vec![0.0; batch.len * 4 * batch.size_px * batch.size_px],
+        })
+    }
+}
+
+/// The silhouette's extent through `(u, v)` along image direction `(c, s)`, in pixels.
+fn extent_px(image: &[f32], l: usize, u: usize, v: usize, c: f64, s: f64) -> f64 {
+    let filled = |x: f64, y: f64| {
+        let (xi, yi) = (x.floor(), y.floor());
+        xi >= 0.0
+            && yi >= 0.0
+            && (xi as usize) < l
+            && (yi as usize) < l
+            && image[yi as usize * l + xi as usize] > 0.0
+    };
+    let reach = |sign: f64| {
+        let (mut t, mut last) = (0.0, 0.0);
+        while t < l as f64 {
+            t += 0.5;
+            let (x, y) = (u as f64 + 0.5 + sign * t * c, v as f64 + 0.5 + sign * t * s);
+            if filled(x, y) {
+                last = t;
+            } else if t - last > 1.5 {
+                break;
+            }
+        }
+        last
+    };
+    reach(1.0) + reach(-1.0) + 1.0
+}
+
+/// Labels every view of every detected object in `frame` of `scene`.
+pub fn label_frame(
+    scene: &Scene,
+    frame: &Frame,
+    planner: &Planner,
+    gripper: &GripperModel,
+    config: &TargetConfig,
+    rng: &mut SplitMix64,
+) -> Result<Vec<LabelledView>> {
+    let c = &frame.camera;
+    let bytes: Vec<u8> = frame.depth_mm.iter().flat_map(|d| d.to_le_bytes()).collect();
+    let z = f64::from(scene.table_z);
+    let (hx, hy) = (f64::from(scene.table_half[0]), f64::from(scene.table_half[1]));
+    let input = SceneInput {
+        sensor: SensorInput::Depth(DepthFrame {
+            width: c.width,
+            height: c.height,
+            encoding: DepthEncoding::U16Millimetres,
+            data: &bytes,
+            intrinsics: c.intrinsics,
+        }),
+        world_from_camera: c.world_from_camera,
+        workspace: Workspace::new([-hx, -hy, z - 0.05], [hx, hy, z + 0.5])
+            .map_err(|e| Error::Scene(format!("workspace: {e}")))?,
+    };
+    let options = PlanOptions {
+        view_policy: ViewPolicy::TopDown,
+        keep_views: true,
+        max_grasps: 1,
+        min_quality: 1.0,
+        ..PlanOptions::default()
+    };
+    let contract = planner.contract().clone();
+    let plan = planner
+        .plan(&input, &options, &mut NoNet(contract.clone()))
+        .map_err(|e| Error::Scene(format!("pipeline: {e}")))?;
+    let core_gripper = Gripper {
+        max_width_m: f64::from(gripper.max_width_m),
+        finger_width_m: f64::from(gripper.pad_width_m),
+        finger_depth_m: f64::from(gripper.pad_depth_m),
+    };
+    let decode = &planner.config().decode;
+    let l = contract.input_size_px;
+    let pixel_m = f64::from(contract.pixel_size_m);
+    let (iq, ic, is, iw) = (
+        contract.channel_index(Channel::Quality),
+        contract.channel_index(Channel::Cos2Phi),
+        contract.channel_index(Channel::Sin2Phi),
+        contract.channel_index(Channel::Width),
+    );
+    let mut out = Vec::new();
+    for dv in &plan.debug_views {
+        let Some(detected) = plan.objects.iter().find(|o| o.id == dv.object_id) else {
+            continue;
+        };
+        // The scene object this detection is: the one whose box holds its centroid.
+        let centroid = detected.frame.world_from_object.translation.vector;
+        let Some(object) = scene.objects.iter().position(|o| {
+            let (lo, hi) = (o.world_aabb.mins, o.world_aabb.maxs);
+            (0..3).all(|k| {
+                let p = centroid[k] as f32;
+                p >= lo[k] - 0.01 && p <= hi[k] + 0.01
+            })
+        }) else {
+            continue;
+        };
+        let view = &dv.view;
+        let placement = ViewPlacement {
+            view,
+            world_from_object: &detected.frame.world_from_object,
+            object_id: dv.object_id,
+        };
+        let mut maps = vec![0.0f32; 4 * l * l];
+        let (mut candidates, mut positives) = (0, 0);
+        let evaluate = |phi: f64, width: f64, u: usize, v: usize| -> Option<f32> {
+            if !(width > 0.0 && width <= core_gripper.max_width_m) {
+                return None;
+            }
+            let pose = grasp_at(&placement, u, v, phi, width, &core_gripper, &plan.table, decode)?;
+            match label_grasp(scene, object, &pose, width, gripper) {
+                GraspLabel::Positive { score, .. } => Some(score),
+                _ => None,
+            }
+        };
+        for v in (config.stride_px / 2..l).step_by(config.stride_px) {
+            for u in (config.stride_px / 2..l).step_by(config.stride_px) {
+                if view.image[v * l + u] <= 0.0 {
+                    continue;
+                }
+                for k in 0..config.angles {
+                    let phi =
+                        -std::f64::consts::FRAC_PI_2 + k as f64 * std::f64::consts::PI / config.angles as f64;
+                    let across = extent_px(&view.image, l, u, v, phi.cos(), phi.sin()) * pixel_m;
+                    let width = across + 2.0 * config.width_margin_m;
+                    candidates += 1;
+                    let Some(mut best) = evaluate(phi, width, u, v) else {
+                        continue;
+                    };
+                    // Simulated annealing over angle and width from this positive.
+                    let (mut best_phi, mut best_width) = (phi, width);
+                    let (mut cur_phi, mut cur_width, mut cur) = (phi, width, best);
+                    for step in 0..config.anneal_steps {
+                        let temperature =
+                            0.05 * (1.0 - step as f64 / config.anneal_steps.max(1) as f64) + 1e-3;
+                        let try_phi = cur_phi + 0.12 * rng.gaussian();
+                        let try_width = (cur_width + 0.005 * rng.gaussian()).max(0.005);
+                        let Some(score) = evaluate(try_phi, try_width, u, v) else {
+                            continue;
+                        };
+                        if score >= cur || rng.next_f64() < (f64::from(score - cur) / temperature).exp() {
+                            (cur_phi, cur_width, cur) = (try_phi, try_width, score);
+                            if cur > best {
+                                (best_phi, best_width, best) = (cur_phi, cur_width, cur);
+                            }
+                        }
+                    }
+                    positives += 1;
+                    let centre = (l as f64 - 1.0) / 2.0;
+                    let d = ((u as f64 - centre).powi(2) + (v as f64 - centre).powi(2)).sqrt() / centre;
+                    let quality = best * (1.0 - 0.25 * d.min(1.0)) as f32;
+                    let phi = best_phi.sin().atan2(best_phi.cos()); // wrap, then fold to [-pi/2, pi/2)
+                    let (c2, s2) = ((2.0 * phi).cos() as f32, (2.0 * phi).sin() as f32);
+                    let w = (best_width / f64::from(contract.width_scale_m)) as f32;
+                    let r = config.paint_radius_px;
+                    let reach = r.ceil() as i64;
+                    for dy in -reach..=reach {
+                        for dx in -reach..=reach {
+                            let (x, y) = (u as i64 + dx, v as i64 + dy);
+                            if x < 0
+                                || y < 0
+                                || x >= l as i64
+                                || y >= l as i64
+                                || ((dx * dx + dy * dy) as f32) > r * r
+                            {
+                                continue;
+                            }
+                            let i = y as usize * l + x as usize;
+                            if quality > maps[iq * l * l + i] {
+                                maps[iq * l * l + i] = quality;
+                                maps[ic * l * l + i] = c2;
+                                maps[is * l * l + i] = s2;
+                                maps[iw * l * l + i] = w;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        out.push(LabelledView {
+            object,
+            family: scene.objects[object].model.family,
+            axis: view.axis,
+            image: view.image.clone(),
+            maps,
+            candidates,
+            positives,
+        });
+    }
+    Ok(out)
+}
