@@ -37,5 +37,13 @@ if ! PYTHONPATH="$pydeps" python3 -c "import grpc, grpc_tools" >/dev/null 2>&1; 
 fi
 cargo build --quiet -p mvgrasp-server --bin mvgrasp-server
 PYTHONPATH="$pydeps" python3 client/python/test_client.py target/debug/mvgrasp-server "$MVGRASP_ONNXRUNTIME"
+echo "== sim datagen, read back by the Python dataset reader (numpy only)"
+if ! PYTHONPATH="$pydeps" python3 -c "import numpy" >/dev/null 2>&1; then
+    python3 -m pip install --quiet --disable-pip-version-check --target "$pydeps" numpy
+fi
+cargo build --quiet -p mvgrasp-sim --bin sim
+rm -rf target/datagen-ci
+target/debug/sim datagen --scenes 6 --scenes-per-shard 3 --out target/datagen-ci
+PYTHONPATH="$pydeps" python3 sim/python/read_dataset.py target/datagen-ci --check
 echo "== cargo nextest"
 cargo nextest run --workspace --no-fail-fast

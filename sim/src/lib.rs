@@ -18,6 +18,7 @@
 //! piles, mesh import, training targets and the dataset writer.
 
 pub mod camera;
+pub mod dataset;
 mod error;
 pub mod files;
 pub mod grasp;

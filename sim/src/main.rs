@@ -4,12 +4,15 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
+use mvgrasp_core::ModelContract;
 use mvgrasp_core::rng::SplitMix64;
 use mvgrasp_sim::{
     camera::{Camera, NoiseModel, render},
+    dataset::{DatagenConfig, generate},
     files::write_frame,
     objects::Family,
     scene::{Scenario, Scene},
+    targets::TargetConfig,
 };
 use nalgebra::Vector3;
 
@@ -23,6 +26,43 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Render and label scenes into a dataset of views and target maps
+    /// (numpy-readable shards + manifest.json; see `dataset.rs`).
+    Datagen {
+        /// Scenes to generate.
+        #[arg(long)]
+        scenes: u64,
+        /// First scene seed (scenes use seed, seed + 1, ...).
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+        /// Scenarios drawn in turn (comma-separated).
+        #[arg(long, value_delimiter = ',', default_value = "isolated,packed")]
+        scenarios: Vec<String>,
+        /// Shape families (comma-separated; default all).
+        #[arg(long, value_delimiter = ',')]
+        families: Vec<String>,
+        /// View side in pixels.
+        #[arg(long, default_value_t = 96)]
+        input_size_px: usize,
+        /// View pixel size (mm).
+        #[arg(long, default_value_t = 2.5)]
+        pixel_size_mm: f32,
+        /// Scenes per shard.
+        #[arg(long, default_value_t = 64)]
+        scenes_per_shard: u64,
+        /// A perfect sensor.
+        #[arg(long)]
+        no_noise: bool,
+        /// Worker threads (default: one per core).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Data version recorded in the manifest.
+        #[arg(long, default_value = "sim-1")]
+        data_version: String,
+    },
     /// Render one scene: depth.png + camera.json (what `mvgrasp plan` reads),
     /// labels.png and preview.png.
     RenderSample {
@@ -47,8 +87,67 @@ enum Command {
     },
 }
 
+fn families_of(names: &[String]) -> anyhow::Result<Vec<Family>> {
+    if names.is_empty() {
+        return Ok(Family::ALL.to_vec());
+    }
+    names
+        .iter()
+        .map(|f| Family::parse(f).with_context(|| format!("--families: unknown family {f:?}")))
+        .collect()
+}
+
 fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
+        Command::Datagen {
+            scenes,
+            seed,
+            out,
+            scenarios,
+            families,
+            input_size_px,
+            pixel_size_mm,
+            scenes_per_shard,
+            no_noise,
+            threads,
+            data_version,
+        } => {
+            if let Some(n) = threads {
+                rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
+            }
+            let scenarios = scenarios
+                .iter()
+                .map(|s| Scenario::parse(s).with_context(|| format!("--scenarios: unknown scenario {s:?}")))
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            let contract = ModelContract {
+                input_size_px,
+                pixel_size_m: pixel_size_mm / 1000.0,
+                data_version: data_version.clone(),
+                ..ModelContract::baseline()
+            };
+            let config = DatagenConfig {
+                scenes,
+                seed,
+                scenarios,
+                families: families_of(&families)?,
+                scenes_per_shard,
+                targets: TargetConfig::default(),
+                noise: (!no_noise).then(NoiseModel::default),
+                data_version,
+            };
+            let started = std::time::Instant::now();
+            let report = generate(&out, &contract, &config, true)?;
+            println!(
+                "{} views ({} with positives) from {} scenes in {} shards, {} scenes failed, {:.1} s; wrote {}",
+                report.views,
+                report.views_with_positives,
+                scenes,
+                report.shards,
+                report.failed.len(),
+                started.elapsed().as_secs_f64(),
+                out.join("manifest.json").display()
+            );
+        }
         Command::RenderSample {
             scenario,
             seed,
@@ -59,14 +158,7 @@ fn main() -> anyhow::Result<()> {
         } => {
             let scenario = Scenario::parse(&scenario)
                 .with_context(|| format!("--scenario {scenario:?}: isolated, packed or clutter"))?;
-            let families: Vec<Family> = if families.is_empty() {
-                Family::ALL.to_vec()
-            } else {
-                families
-                    .iter()
-                    .map(|f| Family::parse(f).with_context(|| format!("--families: unknown family {f:?}")))
-                    .collect::<anyhow::Result<_>>()?
-            };
+            let families = families_of(&families)?;
             let scene = Scene::generate(scenario, seed, &families)?;
             let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xCA3E);
             let target = Vector3::new(0.0, 0.0, f64::from(scene.table_z));

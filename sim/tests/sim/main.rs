@@ -363,7 +363,10 @@ mod targets {
         let views = labelled([0.06, 0.04, 0.10]);
         assert_eq!(views.len(), 3, "top, front and side views of the one object");
         for v in &views {
-            println!("{:?}: {} of {} candidates positive", v.axis, v.positives, v.candidates);
+            println!(
+                "{:?}: {} of {} candidates positive",
+                v.axis, v.positives, v.candidates
+            );
         }
         let top = views.iter().find(|v| v.axis == ViewAxis::Top).unwrap();
         assert!(
@@ -400,4 +403,45 @@ mod targets {
         let top = wide.iter().find(|v| v.axis == ViewAxis::Top).unwrap();
         assert_eq!(top.positives, 0, "of {} candidates", top.candidates);
     }
+}
+
+#[test]
+fn datagen_writes_shards_its_manifest_counts() {
+    use mvgrasp_sim::dataset::{DatagenConfig, generate};
+    use mvgrasp_sim::targets::TargetConfig;
+
+    let out = std::env::temp_dir().join(format!("mvgrasp-datagen-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let contract = MomentsNet::default().contract().clone();
+    let config = DatagenConfig {
+        scenes: 3,
+        seed: 40,
+        scenarios: vec![Scenario::Isolated, Scenario::Packed],
+        families: Family::ALL.to_vec(),
+        scenes_per_shard: 2,
+        targets: TargetConfig::default(),
+        noise: Some(NoiseModel::default()),
+        data_version: "test".into(),
+    };
+    let report = generate(&out, &contract, &config, false).unwrap();
+    assert!(report.failed.is_empty(), "{:?}", report.failed);
+    assert_eq!(report.shards, 2);
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["views"], report.views);
+    let mut lines = 0;
+    for shard in ["shard_00000", "shard_00001"] {
+        let meta = std::fs::read_to_string(out.join(shard).join("meta.jsonl")).unwrap();
+        let n = meta.lines().count();
+        lines += n;
+        // .npy: a 64-byte-aligned header, then n x 4 x 96 x 96 float32.
+        let maps = std::fs::read(out.join(shard).join("maps.npy")).unwrap();
+        let header = usize::from(u16::from_le_bytes([maps[8], maps[9]]));
+        assert_eq!((10 + header) % 64, 0);
+        assert_eq!(maps.len(), 10 + header + n * 4 * 96 * 96 * 4);
+        let text = String::from_utf8_lossy(&maps[10..10 + header]).into_owned();
+        assert!(text.contains(&format!("'shape': ({n}, 4, 96, 96)")), "{text}");
+    }
+    assert_eq!(lines, report.views);
+    let _ = std::fs::remove_dir_all(&out);
 }
