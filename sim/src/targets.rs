@@ -19,6 +19,7 @@
 
 use mvgrasp_core::decode::{ViewPlacement, grasp_at};
 use mvgrasp_core::rng::SplitMix64;
+use mvgrasp_core::view::silhouette_extent_px;
 use mvgrasp_core::{
     Channel, DepthEncoding, DepthFrame, GraspMaps, GraspNet, Gripper, ModelContract, PlanOptions, Planner,
     SceneInput, SensorInput, ViewAxis, ViewBatch, ViewPolicy, Workspace,
@@ -90,32 +91,6 @@ impl GraspNet for NoNet {
             data: vec![0.0; batch.len * 4 * batch.size_px * batch.size_px],
         })
     }
-}
-
-/// The silhouette's extent through `(u, v)` along image direction `(c, s)`, in pixels.
-fn extent_px(image: &[f32], l: usize, u: usize, v: usize, c: f64, s: f64) -> f64 {
-    let filled = |x: f64, y: f64| {
-        let (xi, yi) = (x.floor(), y.floor());
-        xi >= 0.0
-            && yi >= 0.0
-            && (xi as usize) < l
-            && (yi as usize) < l
-            && image[yi as usize * l + xi as usize] > 0.0
-    };
-    let reach = |sign: f64| {
-        let (mut t, mut last) = (0.0, 0.0);
-        while t < l as f64 {
-            t += 0.5;
-            let (x, y) = (u as f64 + 0.5 + sign * t * c, v as f64 + 0.5 + sign * t * s);
-            if filled(x, y) {
-                last = t;
-            } else if t - last > 1.5 {
-                break;
-            }
-        }
-        last
-    };
-    reach(1.0) + reach(-1.0) + 1.0
 }
 
 /// Labels every view of every detected object in `frame` of `scene`.
@@ -210,7 +185,8 @@ pub fn label_frame(
                 for k in 0..config.angles {
                     let phi =
                         -std::f64::consts::FRAC_PI_2 + k as f64 * std::f64::consts::PI / config.angles as f64;
-                    let across = extent_px(&view.image, l, u, v, phi.cos(), phi.sin()) * pixel_m;
+                    let (x, y) = (u as f64 + 0.5, v as f64 + 0.5);
+                    let across = silhouette_extent_px(&view.image, l, x, y, phi.cos(), phi.sin()) * pixel_m;
                     let width = across + 2.0 * config.width_margin_m;
                     candidates += 1;
                     let Some(mut best) = evaluate(phi, width, u, v) else {

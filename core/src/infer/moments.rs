@@ -9,6 +9,7 @@
 
 use super::{Channel, GraspMaps, GraspNet, ModelContract, ViewBatch};
 use crate::error::Result;
+use crate::view::{silhouette_extent_px, silhouette_share};
 
 /// The analytic baseline (see the module docs).
 #[derive(Debug, Clone)]
@@ -63,42 +64,11 @@ impl MomentsNet {
         let major = 0.5 * (2.0 * c11).atan2(c20 - c02);
         let closing = major + std::f64::consts::FRAC_PI_2;
         let (du, dv) = (closing.cos(), closing.sin());
-        let filled = |u: f64, v: f64| {
-            let (x, y) = (u.floor(), v.floor());
-            x >= 0.0
-                && y >= 0.0
-                && (x as usize) < l
-                && (y as usize) < l
-                && image[y as usize * l + x as usize] > 0.0
-        };
-        // Extent along the closing direction through the centroid, bridging 1 px gaps.
-        let reach = |sign: f64| {
-            let (mut t, mut last) = (0.0, 0.0);
-            while t < l as f64 {
-                t += 0.5;
-                if filled(cu + 0.5 + sign * t * du, cv + 0.5 + sign * t * dv) {
-                    last = t;
-                } else if t - last > 1.5 {
-                    break;
-                }
-            }
-            last
-        };
-        let extent_m = (reach(1.0) + reach(-1.0) + 1.0) as f32 * self.contract.pixel_size_m;
+        // Extent along the closing direction through the centroid.
+        let extent_px = silhouette_extent_px(image, l, cu + 0.5, cv + 0.5, du, dv);
+        let extent_m = extent_px as f32 * self.contract.pixel_size_m;
         let width = (extent_m + 2.0 * self.margin_m) / self.contract.width_scale_m;
-        let solid = {
-            let r = (1.5 * self.sigma_px) as isize;
-            let (mut inside, mut lit) = (0, 0);
-            for dy in -r..=r {
-                for dx in -r..=r {
-                    if dx * dx + dy * dy <= r * r {
-                        inside += 1;
-                        lit += usize::from(filled(cu + 0.5 + dx as f64, cv + 0.5 + dy as f64));
-                    }
-                }
-            }
-            lit as f32 / inside.max(1) as f32
-        };
+        let solid = silhouette_share(image, l, cu + 0.5, cv + 0.5, (1.5 * self.sigma_px) as isize);
         let peak = 0.95 * solid;
         let (cos2, sin2) = ((2.0 * closing).cos() as f32, (2.0 * closing).sin() as f32);
         let inv_two_sigma_sq = 1.0 / (2.0 * self.sigma_px * self.sigma_px);
