@@ -135,6 +135,8 @@ impl Metrics {
     pub async fn serve(self: Arc<Self>, listener: TcpListener) {
         loop {
             let Ok((mut stream, _)) = listener.accept().await else {
+                // E.g. out of file descriptors: back off instead of spinning.
+                tokio::time::sleep(std::time::Duration::from_millis(50)).await;
                 continue;
             };
             let metrics = Arc::clone(&self);
