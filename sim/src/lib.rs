@@ -23,6 +23,7 @@ mod error;
 pub mod files;
 pub mod grasp;
 pub mod objects;
+pub mod physics;
 pub mod scene;
 pub mod targets;
 

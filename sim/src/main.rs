@@ -26,6 +26,19 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// How often analytic labels and rapier3d physics agree, on top-down
+    /// grasps of isolated scenes (8 yaws x 3 depths each).
+    PhysicsAgreement {
+        /// Isolated scenes.
+        #[arg(long, default_value_t = 20)]
+        scenes: u64,
+        /// First seed.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Shape families (comma-separated; default all).
+        #[arg(long, value_delimiter = ',')]
+        families: Vec<String>,
+    },
     /// Render and label scenes into a dataset of views and target maps
     /// (numpy-readable shards + manifest.json; see `dataset.rs`).
     Datagen {
@@ -99,6 +112,29 @@ fn families_of(names: &[String]) -> anyhow::Result<Vec<Family>> {
 
 fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
+        Command::PhysicsAgreement {
+            scenes,
+            seed,
+            families,
+        } => {
+            let started = std::time::Instant::now();
+            let a = mvgrasp_sim::physics::agreement(
+                seed..seed + scenes,
+                &families_of(&families)?,
+                &mvgrasp_sim::grasp::GripperModel::robotiq_2f_140(),
+                &mvgrasp_sim::physics::TrialConfig::default(),
+            )?;
+            println!(
+                "{} grasps on {scenes} isolated scenes: agreement {:.1}% (both positive {}, both negative {}, analytic positive but dropped {}, analytic negative but held {}); {:.1} s",
+                a.total(),
+                a.rate() * 100.0,
+                a.both_positive,
+                a.both_negative,
+                a.analytic_only,
+                a.physics_only,
+                started.elapsed().as_secs_f64()
+            );
+        }
         Command::Datagen {
             scenes,
             seed,

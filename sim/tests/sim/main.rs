@@ -217,7 +217,7 @@ mod grasp_labels {
     use super::*;
 
     /// A top-down grasp at height `z` closing along world `closing` (unit, horizontal).
-    fn top_down_grasp(x: f64, y: f64, z: f64, closing: V3<f64>) -> Isometry3<f64> {
+    pub fn top_down_grasp(x: f64, y: f64, z: f64, closing: V3<f64>) -> Isometry3<f64> {
         let approach = V3::new(0.0, 0.0, -1.0);
         let y_axis = approach.cross(&closing);
         let r = Rotation3::from_basis_unchecked(&[closing, y_axis, approach]);
@@ -228,7 +228,7 @@ mod grasp_labels {
     }
 
     /// A 6 x 4 x 10 cm box (x by y by z) standing at the origin of a table at z = 0.
-    fn box_scene(size: [f32; 3]) -> Scene {
+    pub fn box_scene(size: [f32; 3]) -> Scene {
         let model = ObjectModel::from_parts(
             Family::Box,
             vec![(
@@ -444,4 +444,56 @@ fn datagen_writes_shards_its_manifest_counts() {
     }
     assert_eq!(lines, report.views);
     let _ = std::fs::remove_dir_all(&out);
+}
+
+mod physics {
+    use mvgrasp_sim::grasp::{GraspLabel, GripperModel, label_grasp};
+    use mvgrasp_sim::physics::{TrialConfig, TrialOutcome, trial};
+    use nalgebra::Vector3 as V3;
+
+    use super::grasp_labels::{box_scene, top_down_grasp};
+    use super::*;
+
+    #[test]
+    fn a_narrow_side_grasp_lifts_and_a_grasp_over_a_ball_does_not() {
+        let g = GripperModel::robotiq_2f_140();
+        let config = TrialConfig::default();
+        // Positive analytically and in physics: across the 4 cm side, 4 cm deep.
+        let scene = box_scene([0.06, 0.04, 0.10]);
+        let grasp = top_down_grasp(0.0, 0.0, 0.06, V3::y());
+        assert!(label_grasp(&scene, 0, &grasp, 0.04, &g).is_positive());
+        let outcome = trial(&scene, 0, &grasp, 0.04, &g, &config);
+        assert!(
+            matches!(outcome, TrialOutcome::Held { lifted_m } if lifted_m > 0.14),
+            "{outcome:?}"
+        );
+        // Negative both ways: pads meeting a 4 cm ball 6 mm below its top,
+        // where its surface faces up at about 55 degrees.
+        let ball = ObjectModel::from_parts(
+            Family::Ellipsoid,
+            vec![(
+                Pose::from_translation(Vector::new(0.0, 0.0, 0.04)),
+                SharedShape::ball(0.04),
+            )],
+        );
+        let scene = one_object(0.0, ball, 0.0, 0.0);
+        let grasp = top_down_grasp(0.0, 0.0, 0.074, V3::y());
+        assert!(matches!(
+            label_grasp(&scene, 0, &grasp, 0.04, &g),
+            GraspLabel::NotAntipodal { .. }
+        ));
+        let outcome = trial(&scene, 0, &grasp, 0.04, &g, &config);
+        assert!(!outcome.is_held(), "{outcome:?}");
+        // Nothing between the pads: no grip.
+        let scene = box_scene([0.06, 0.04, 0.10]);
+        let outcome = trial(
+            &scene,
+            0,
+            &top_down_grasp(0.0, 0.2, 0.06, V3::y()),
+            0.04,
+            &g,
+            &config,
+        );
+        assert_eq!(outcome, TrialOutcome::NoGrip);
+    }
 }
