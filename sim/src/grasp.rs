@@ -102,7 +102,8 @@ impl GraspLabel {
     }
 }
 
-fn pose_of(iso: &Isometry3<f64>) -> Pose {
+/// `iso` as parry's single-precision pose.
+pub(crate) fn pose_of(iso: &Isometry3<f64>) -> Pose {
     let t = iso.translation.vector;
     let q = iso.rotation.quaternion();
     Pose::from_parts(

@@ -12,11 +12,11 @@
 
 use nalgebra::Isometry3;
 use rapier3d::prelude::{
-    ColliderBuilder, ColliderHandle, PhysicsWorld, Pose, RigidBodyBuilder, RigidBodyHandle, Rotation,
-    SharedShape, Vector,
+    ColliderBuilder, ColliderHandle, PhysicsWorld, Pose, RigidBodyBuilder, RigidBodyHandle, SharedShape,
+    Vector,
 };
 
-use crate::grasp::GripperModel;
+use crate::grasp::{GripperModel, pose_of};
 use crate::scene::Scene;
 
 /// How a trial runs.
@@ -86,15 +86,6 @@ impl TrialOutcome {
     pub fn is_held(&self) -> bool {
         matches!(self, Self::Held { .. })
     }
-}
-
-fn pose_of(iso: &Isometry3<f64>) -> Pose {
-    let t = iso.translation.vector;
-    let q = iso.rotation.quaternion();
-    Pose::from_parts(
-        Vector::new(t.x as f32, t.y as f32, t.z as f32),
-        Rotation::from_xyzw(q.i as f32, q.j as f32, q.k as f32, q.w as f32).normalize(),
-    )
 }
 
 struct Hand {
