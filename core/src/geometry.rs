@@ -91,6 +91,22 @@ pub fn world_up() -> Vector3<f64> {
     Vector3::z()
 }
 
+/// The pose of a camera at `eye` looking at `target` (OpenCV axes: z forward,
+/// x right, y down), with the image's up as close to world up as it can be.
+pub fn camera_looking_at(eye: Vector3<f64>, target: Vector3<f64>) -> Isometry3<f64> {
+    let z = (target - eye).normalize();
+    let x = z
+        .cross(&Vector3::z())
+        .try_normalize(1e-9)
+        .unwrap_or_else(Vector3::x);
+    let y = z.cross(&x);
+    let rotation = nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_columns(&[x, y, z]));
+    Isometry3::from_parts(
+        Translation3::from(eye),
+        UnitQuaternion::from_rotation_matrix(&rotation),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

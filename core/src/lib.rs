@@ -57,7 +57,7 @@ pub mod view;
 
 pub use decode::{DecodeConfig, Grasp};
 pub use error::{Error, Result};
-pub use geometry::{QUATERNION_NORM_TOLERANCE, Workspace, pose_from_parts, world_up};
+pub use geometry::{QUATERNION_NORM_TOLERANCE, Workspace, camera_looking_at, pose_from_parts, world_up};
 pub use gripper::Gripper;
 pub use infer::{Channel, GraspMaps, GraspNet, ModelContract, MomentsNet, ViewBatch};
 pub use object::ObjectFrame;

@@ -5,7 +5,7 @@
 
 use mvgrasp_core::Intrinsics;
 use mvgrasp_core::rng::SplitMix64;
-use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 use parry3d::math::Vector;
 use parry3d::query::{Ray, RayCast};
 
@@ -33,13 +33,6 @@ impl Camera {
         height: u32,
         focal_px: f64,
     ) -> Self {
-        let z = (target - eye).normalize();
-        let x = z
-            .cross(&Vector3::z())
-            .try_normalize(1e-9)
-            .unwrap_or_else(Vector3::x);
-        let y = z.cross(&x);
-        let rotation = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z]));
         Self {
             width,
             height,
@@ -49,10 +42,7 @@ impl Camera {
                 cx: (f64::from(width) - 1.0) / 2.0,
                 cy: (f64::from(height) - 1.0) / 2.0,
             },
-            world_from_camera: Isometry3::from_parts(
-                Translation3::from(eye),
-                UnitQuaternion::from_rotation_matrix(&rotation),
-            ),
+            world_from_camera: mvgrasp_core::camera_looking_at(eye, target),
         }
     }
 

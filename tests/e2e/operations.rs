@@ -114,24 +114,32 @@ async fn health_reflection_and_metrics() {
 async fn deadlines_and_callers_that_leave() {
     let mut s = settings(BackendKind::Baseline);
     s.batching.max_wait_ms = 0.0;
-    let (server, client) = start_with(s, slow_net(Duration::from_millis(300))).await;
+    let (server, client) = start_with(s, slow_net(Duration::from_millis(1500))).await;
+    let metrics_addr = server.metrics_addr.unwrap();
     // A caller that gives up while queued behind another call: its views never reach the network.
     let mut first = client.clone();
     let busy = tokio::spawn(async move { first.plan(frame()).await });
-    tokio::time::sleep(Duration::from_millis(60)).await;
+    // Wait until the first call's views are in the network (generous for busy machines).
+    for _ in 0..500 {
+        let m = scrape(metrics_addr).await;
+        if sample(&m, "mvgrasp_batch_views_count") >= 1.0 {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
     let mut second = client.clone();
-    let gone = tokio::time::timeout(Duration::from_millis(100), second.plan(frame())).await;
+    let gone = tokio::time::timeout(Duration::from_millis(700), second.plan(frame())).await;
     assert!(gone.is_err(), "the second call should still be queued");
     assert!(busy.await.unwrap().is_ok());
     tokio::time::sleep(Duration::from_millis(100)).await;
-    let metrics = scrape(server.metrics_addr.unwrap()).await;
+    let metrics = scrape(metrics_addr).await;
     assert_eq!(
         sample(&metrics, "mvgrasp_dropped_views_total{reason=\"caller_gone\"}"),
         6.0,
         "{metrics}"
     );
     // A deadline shorter than the network call.
-    let mut hurried = client.clone().with_timeout(Duration::from_millis(150));
+    let mut hurried = client.clone().with_timeout(Duration::from_millis(400));
     match hurried.plan(frame()).await {
         Err(Error::Rpc(status)) => assert!(
             matches!(status.code(), Code::DeadlineExceeded | Code::Cancelled),
@@ -145,7 +153,8 @@ async fn deadlines_and_callers_that_leave() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn concurrent_calls_share_network_batches() {
     let mut s = settings(BackendKind::Baseline);
-    s.batching.max_wait_ms = 20.0;
+    // Generous: calls still in their CPU stages are waited for, up to this.
+    s.batching.max_wait_ms = 300.0;
     s.batching.max_batch_views = 64;
     let (server, client) = start_with(s, slow_net(Duration::from_millis(30))).await;
     let calls: Vec<_> = (0..8)
@@ -175,7 +184,15 @@ async fn shutdown_drains_calls_in_flight() {
     let addr = server.addr;
     let mut caller = client.clone();
     let in_flight = tokio::spawn(async move { caller.plan(frame()).await });
-    tokio::time::sleep(Duration::from_millis(100)).await;
+    // Shut down once the server holds the call (on a busy machine the
+    // request can take a while to arrive).
+    let metrics = server.metrics_addr.unwrap();
+    for _ in 0..500 {
+        if sample(&scrape(metrics).await, "mvgrasp_in_flight_requests") >= 1.0 {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
     server.shutdown().await.unwrap();
     let answer = in_flight.await.unwrap();
     assert!(answer.is_ok(), "the call in flight was cut: {answer:?}");

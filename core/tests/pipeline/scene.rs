@@ -7,7 +7,7 @@
 #![allow(dead_code)]
 
 use mvgrasp_core::{DepthEncoding, DepthFrame, Intrinsics, SceneInput, SensorInput, Workspace};
-use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 
 /// A solid standing on (or lying on) the table.
 #[derive(Debug, Clone, Copy)]
@@ -140,13 +140,6 @@ impl Camera {
         height: u32,
         focal_px: f64,
     ) -> Self {
-        let z = (target - eye).normalize();
-        let x = z
-            .cross(&Vector3::z())
-            .try_normalize(1e-9)
-            .unwrap_or_else(Vector3::x);
-        let y = z.cross(&x);
-        let rotation = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z]));
         Self {
             width,
             height,
@@ -156,10 +149,7 @@ impl Camera {
                 cx: (f64::from(width) - 1.0) / 2.0,
                 cy: (f64::from(height) - 1.0) / 2.0,
             },
-            world_from_camera: Isometry3::from_parts(
-                Translation3::from(eye),
-                UnitQuaternion::from_rotation_matrix(&rotation),
-            ),
+            world_from_camera: mvgrasp_core::camera_looking_at(eye, target),
         }
     }
 
