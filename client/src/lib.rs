@@ -16,6 +16,7 @@
 
 pub mod bench;
 pub mod cloud;
+pub mod request;
 pub mod scene;
 pub mod viz;
 

@@ -70,38 +70,20 @@ impl SceneFiles {
                 ),
             ));
         }
+        let request = mvgrasp_client::request::depth_request(
+            width,
+            height,
+            depth_mm,
+            pb::CameraIntrinsics {
+                fx: intrinsics.fx,
+                fy: intrinsics.fy,
+                cx: intrinsics.cx,
+                cy: intrinsics.cy,
+            },
+            &world_from_camera,
+            Some((workspace.min, workspace.max)),
+        );
         let depth_le: Vec<u8> = depth_mm.iter().flat_map(|d| d.to_le_bytes()).collect();
-        let q = world_from_camera.rotation.quaternion();
-        let t = world_from_camera.translation.vector;
-        let vector = |x: f64, y: f64, z: f64| Some(pb::Vector3 { x, y, z });
-        let request = pb::PlanGraspsRequest {
-            sensor: Some(pb::plan_grasps_request::Sensor::Depth(pb::DepthImage {
-                width,
-                height,
-                encoding: pb::DepthEncoding::Uint16Mm as i32,
-                data: depth_le.clone(),
-                intrinsics: Some(pb::CameraIntrinsics {
-                    fx: intrinsics.fx,
-                    fy: intrinsics.fy,
-                    cx: intrinsics.cx,
-                    cy: intrinsics.cy,
-                }),
-            })),
-            world_from_camera: Some(pb::Pose {
-                position: vector(t.x, t.y, t.z),
-                orientation: Some(pb::Quaternion {
-                    x: q.i,
-                    y: q.j,
-                    z: q.k,
-                    w: q.w,
-                }),
-            }),
-            workspace: Some(pb::Workspace {
-                min: vector(workspace.min.x, workspace.min.y, workspace.min.z),
-                max: vector(workspace.max.x, workspace.max.y, workspace.max.z),
-            }),
-            ..Default::default()
-        };
         Ok(Self {
             request,
             depth_le,

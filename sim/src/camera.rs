@@ -3,8 +3,8 @@
 //! compound shape's own bounding-volume tree), and a consumer depth camera's
 //! noise.
 
-use mvgrasp_core::Intrinsics;
 use mvgrasp_core::rng::SplitMix64;
+use mvgrasp_core::{DepthEncoding, DepthFrame, Intrinsics, SceneInput, SensorInput, Workspace};
 use nalgebra::{Isometry3, Point3, Vector3};
 use parry3d::math::Vector;
 use parry3d::query::{Ray, RayCast};
@@ -231,6 +231,27 @@ pub fn render(scene: &Scene, camera: &Camera, noise: Option<(&NoiseModel, &mut S
 }
 
 impl Frame {
+    /// The depth as little-endian bytes, as the wire and the pipeline carry it.
+    pub fn depth_le_bytes(&self) -> Vec<u8> {
+        self.depth_mm.iter().flat_map(|d| d.to_le_bytes()).collect()
+    }
+
+    /// This frame as the pipeline takes it (`depth_le` from [`Self::depth_le_bytes`]).
+    pub fn scene_input<'a>(&self, depth_le: &'a [u8], workspace: Workspace) -> SceneInput<'a> {
+        let c = &self.camera;
+        SceneInput {
+            sensor: SensorInput::Depth(DepthFrame {
+                width: c.width,
+                height: c.height,
+                encoding: DepthEncoding::U16Millimetres,
+                data: depth_le,
+                intrinsics: c.intrinsics,
+            }),
+            world_from_camera: c.world_from_camera,
+            workspace,
+        }
+    }
+
     /// The world points of the pixels labelled `label` (from the stored depth).
     pub fn labelled_points(&self, label: u16) -> Vec<Point3<f64>> {
         let (w, k) = (self.camera.width as usize, self.camera.intrinsics);

@@ -55,15 +55,12 @@ pub fn write_frame(dir: &Path, scene: &Scene, frame: &Frame) -> Result<()> {
         c.world_from_camera.rotation,
     );
     let k = c.intrinsics;
-    let z = f64::from(scene.table_z);
+    let ws = scene.workspace();
     let camera = serde_json::json!({
         "width": c.width, "height": c.height,
         "intrinsics": { "fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy },
         "world_from_camera": { "position": [t.x, t.y, t.z], "orientation": [q.i, q.j, q.k, q.w] },
-        "workspace": {
-            "min": [-f64::from(scene.table_half[0]), -f64::from(scene.table_half[1]), z - 0.05],
-            "max": [f64::from(scene.table_half[0]), f64::from(scene.table_half[1]), z + 0.5],
-        },
+        "workspace": { "min": [ws.min.x, ws.min.y, ws.min.z], "max": [ws.max.x, ws.max.y, ws.max.z] },
         "scene": {
             "scenario": scene.scenario.name(), "seed": scene.seed, "table_z": scene.table_z,
             "objects": scene.objects.iter().enumerate().map(|(i, o)| serde_json::json!({

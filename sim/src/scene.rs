@@ -2,7 +2,9 @@
 //! per seed. The table is the plane `z = table_z`, centred on the world
 //! origin.
 
+use mvgrasp_core::Workspace;
 use mvgrasp_core::rng::SplitMix64;
+use nalgebra::Point3;
 use parry3d::bounding_volume::Aabb;
 use parry3d::math::{Pose, Rotation, Vector};
 
@@ -113,6 +115,20 @@ fn fits(placed: &[PlacedObject], candidate: &Aabb, gap: f64) -> bool {
 }
 
 impl Scene {
+    /// The box the planner should look in: the table top, from 5 cm under
+    /// it to 50 cm over it.
+    pub fn workspace(&self) -> Workspace {
+        let (z, hx, hy) = (
+            f64::from(self.table_z),
+            f64::from(self.table_half[0]),
+            f64::from(self.table_half[1]),
+        );
+        Workspace {
+            min: Point3::new(-hx, -hy, z - 0.05),
+            max: Point3::new(hx, hy, z + 0.5),
+        }
+    }
+
     /// The scene of `scenario` for `seed`, drawing objects from `families`.
     pub fn generate(scenario: Scenario, seed: u64, families: &[Family]) -> Result<Self> {
         if families.is_empty() {

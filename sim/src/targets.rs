@@ -21,8 +21,8 @@ use mvgrasp_core::decode::{ViewPlacement, grasp_at};
 use mvgrasp_core::rng::SplitMix64;
 use mvgrasp_core::view::silhouette_extent_px;
 use mvgrasp_core::{
-    Channel, DepthEncoding, DepthFrame, GraspMaps, GraspNet, Gripper, ModelContract, PlanOptions, Planner,
-    SceneInput, SensorInput, ViewAxis, ViewBatch, ViewPolicy, Workspace,
+    Channel, GraspMaps, GraspNet, Gripper, ModelContract, PlanOptions, Planner, ViewAxis, ViewBatch,
+    ViewPolicy,
 };
 
 use crate::camera::Frame;
@@ -102,22 +102,8 @@ pub fn label_frame(
     config: &TargetConfig,
     rng: &mut SplitMix64,
 ) -> Result<Vec<LabelledView>> {
-    let c = &frame.camera;
-    let bytes: Vec<u8> = frame.depth_mm.iter().flat_map(|d| d.to_le_bytes()).collect();
-    let z = f64::from(scene.table_z);
-    let (hx, hy) = (f64::from(scene.table_half[0]), f64::from(scene.table_half[1]));
-    let input = SceneInput {
-        sensor: SensorInput::Depth(DepthFrame {
-            width: c.width,
-            height: c.height,
-            encoding: DepthEncoding::U16Millimetres,
-            data: &bytes,
-            intrinsics: c.intrinsics,
-        }),
-        world_from_camera: c.world_from_camera,
-        workspace: Workspace::new([-hx, -hy, z - 0.05], [hx, hy, z + 0.5])
-            .map_err(|e| Error::Scene(format!("workspace: {e}")))?,
-    };
+    let bytes = frame.depth_le_bytes();
+    let input = frame.scene_input(&bytes, scene.workspace());
     let options = PlanOptions {
         view_policy: ViewPolicy::TopDown,
         keep_views: true,

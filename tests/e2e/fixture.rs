@@ -5,7 +5,7 @@ use std::{path::PathBuf, time::Duration};
 use mvgrasp_client::{PlannerClient, pb};
 use mvgrasp_core::{GraspMaps, GraspNet, ModelContract, MomentsNet, ViewBatch};
 use mvgrasp_server::{BackendKind, RunningServer, Settings, backend::LoadedNet};
-use nalgebra::Vector3;
+use nalgebra::Point3;
 
 use crate::scene::{Camera, Scene, render};
 
@@ -94,51 +94,21 @@ pub fn slow_net(delay: Duration) -> LoadedNet {
     }
 }
 
-fn vector(v: Vector3<f64>) -> pb::Vector3 {
-    pb::Vector3 {
-        x: v.x,
-        y: v.y,
-        z: v.z,
-    }
-}
-
-/// The wire pose of an isometry.
-pub fn pose(p: &nalgebra::Isometry3<f64>) -> pb::Pose {
-    let q = p.rotation.quaternion();
-    pb::Pose {
-        position: Some(vector(p.translation.vector)),
-        orientation: Some(pb::Quaternion {
-            x: q.i,
-            y: q.j,
-            z: q.k,
-            w: q.w,
-        }),
-    }
-}
-
 /// A rendered uint16 frame of `scene` as a request (workspace around the table).
 pub fn request(scene: &Scene, camera: &Camera) -> pb::PlanGraspsRequest {
-    let rendered = render(scene, camera);
     let k = camera.intrinsics;
     let z = scene.table_z;
-    pb::PlanGraspsRequest {
-        sensor: Some(pb::plan_grasps_request::Sensor::Depth(pb::DepthImage {
-            width: camera.width,
-            height: camera.height,
-            encoding: pb::DepthEncoding::Uint16Mm as i32,
-            data: rendered.depth_bytes(),
-            intrinsics: Some(pb::CameraIntrinsics {
-                fx: k.fx,
-                fy: k.fy,
-                cx: k.cx,
-                cy: k.cy,
-            }),
-        })),
-        world_from_camera: Some(pose(&camera.world_from_camera)),
-        workspace: Some(pb::Workspace {
-            min: Some(vector(Vector3::new(-0.6, -0.4, z - 0.05))),
-            max: Some(vector(Vector3::new(0.6, 0.4, z + 0.4))),
-        }),
-        ..Default::default()
-    }
+    mvgrasp_client::request::depth_request(
+        camera.width,
+        camera.height,
+        &render(scene, camera).depth_mm,
+        pb::CameraIntrinsics {
+            fx: k.fx,
+            fy: k.fy,
+            cx: k.cx,
+            cy: k.cy,
+        },
+        &camera.world_from_camera,
+        Some((Point3::new(-0.6, -0.4, z - 0.05), Point3::new(0.6, 0.4, z + 0.4))),
+    )
 }

@@ -4,10 +4,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
 use mvgrasp_core::rng::SplitMix64;
-use mvgrasp_core::{
-    DepthEncoding, DepthFrame, GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig, SceneInput,
-    SensorInput, Workspace,
-};
+use mvgrasp_core::{GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig};
 use mvgrasp_sim::camera::{Camera, NoiseModel, render};
 use mvgrasp_sim::objects::{Family, ObjectModel};
 use mvgrasp_sim::scene::{PlacedObject, Scenario, Scene};
@@ -165,18 +162,8 @@ fn the_pipeline_finds_simulated_objects() {
             let mut rng = SplitMix64::new(seed + 100);
             let camera = Camera::random(&mut rng, Vector3::new(0.0, 0.0, z), false);
             let frame = render(&scene, &camera, Some((&model, &mut rng)));
-            let bytes: Vec<u8> = frame.depth_mm.iter().flat_map(|d| d.to_le_bytes()).collect();
-            let input = SceneInput {
-                sensor: SensorInput::Depth(DepthFrame {
-                    width: camera.width,
-                    height: camera.height,
-                    encoding: DepthEncoding::U16Millimetres,
-                    data: &bytes,
-                    intrinsics: camera.intrinsics,
-                }),
-                world_from_camera: camera.world_from_camera,
-                workspace: Workspace::new([-0.6, -0.5, z - 0.05], [0.6, 0.5, z + 0.5]).unwrap(),
-            };
+            let bytes = frame.depth_le_bytes();
+            let input = frame.scene_input(&bytes, scene.workspace());
             let plan = planner.plan(&input, &PlanOptions::default(), &mut net).unwrap();
             // Objects with at least 200 pixels in view, more than 1 cm above the table.
             for label in 2..2 + scene.objects.len() as u16 {
