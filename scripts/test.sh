@@ -45,5 +45,7 @@ cargo build --quiet -p mvgrasp-sim --bin sim
 rm -rf target/datagen-ci
 target/debug/sim datagen --scenes 6 --scenes-per-shard 3 --out target/datagen-ci
 PYTHONPATH="$pydeps" python3 sim/python/read_dataset.py target/datagen-ci --check
+echo "== training: dataset reader, augmentation, metric (numpy); torch tests skip, saying why, without torch"
+PYTHONPATH="$pydeps" python3 -m unittest discover -s training/tests -v
 echo "== cargo nextest"
 cargo nextest run --workspace --no-fail-fast

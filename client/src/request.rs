@@ -1,7 +1,7 @@
 //! Building requests from in-memory frames (a camera driver, a simulator)
 //! rather than from files.
 
-use nalgebra::{Isometry3, Point3};
+use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion};
 
 use crate::pb;
 
@@ -21,6 +21,23 @@ pub fn pose_message(pose: &Isometry3<f64>) -> pb::Pose {
             w: q.w,
         }),
     }
+}
+
+/// A pose message as an isometry; a missing pose or orientation is the
+/// identity, and the quaternion is normalised.
+pub fn pose_from_message(p: Option<&pb::Pose>) -> Isometry3<f64> {
+    let Some(p) = p else { return Isometry3::identity() };
+    let t = p.position.unwrap_or_default();
+    let q = p.orientation.unwrap_or(pb::Quaternion {
+        x: 0.0,
+        y: 0.0,
+        z: 0.0,
+        w: 1.0,
+    });
+    Isometry3::from_parts(
+        Translation3::new(t.x, t.y, t.z),
+        UnitQuaternion::from_quaternion(Quaternion::new(q.w, q.x, q.y, q.z)),
+    )
 }
 
 fn point_message(p: &Point3<f64>) -> pb::Vector3 {

@@ -7,9 +7,9 @@
 
 use std::path::Path;
 
-use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Point3, Vector3};
 
-use crate::{Error, Result, pb, scene::SceneFiles};
+use crate::{Error, Result, pb, request::pose_from_message as pose, scene::SceneFiles};
 
 /// An RGB image with just enough drawing for grasps.
 #[derive(Debug, Clone)]
@@ -91,21 +91,6 @@ fn rank_colour(rank: usize, n: usize) -> [u8; 3] {
     }
     let t = rank as f64 / n.max(2) as f64;
     [255, (220.0 * (1.0 - t)) as u8, 30]
-}
-
-fn pose(p: Option<&pb::Pose>) -> Isometry3<f64> {
-    let Some(p) = p else { return Isometry3::identity() };
-    let t = p.position.unwrap_or_default();
-    let q = p.orientation.unwrap_or(pb::Quaternion {
-        x: 0.0,
-        y: 0.0,
-        z: 0.0,
-        w: 1.0,
-    });
-    Isometry3::from_parts(
-        Translation3::new(t.x, t.y, t.z),
-        UnitQuaternion::from_quaternion(Quaternion::new(q.w, q.x, q.y, q.z)),
-    )
 }
 
 fn f32s(bytes: &[u8]) -> Vec<f32> {

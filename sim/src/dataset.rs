@@ -8,6 +8,9 @@
 //! - `shard_NNNNN/views.npy`: float32 `[n, 1, L, L]`, the network inputs.
 //! - `shard_NNNNN/maps.npy`: float32 `[n, 4, L, L]`, targets in the
 //!   contract's channel order (`manifest.contract.outputs`).
+//! - `shard_NNNNN/grasps.npy`: float32 `[m, 6]`, every labelled positive:
+//!   view index within the shard, u, v (pixel), phi (rad, [-pi/2, pi/2]),
+//!   opening (m), painted quality. The ground truth of the accuracy metric.
 //! - `shard_NNNNN/meta.jsonl`: one line per view: scene seed and scenario,
 //!   object index, `instance` (unique per object instance, the key of the
 //!   train / evaluation split), family, view axis, candidates, positives.
@@ -30,7 +33,7 @@ use crate::scene::{Scenario, Scene};
 use crate::targets::{LabelledView, TargetConfig, label_frame};
 
 /// Version of the files this writer produces.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 
 /// What to generate.
 #[derive(Debug, Clone)]
@@ -110,6 +113,16 @@ fn write_shard(dir: &Path, contract: &ModelContract, views: &[(u64, Scenario, La
         .collect();
     write_npy(&dir.join("views.npy"), &[n, 1, l, l], &images)?;
     write_npy(&dir.join("maps.npy"), &[n, 4, l, l], &maps)?;
+    let grasps: Vec<f32> = views
+        .iter()
+        .enumerate()
+        .flat_map(|(i, (_, _, v))| {
+            v.grasps
+                .iter()
+                .flat_map(move |g| [i as f32, g.u as f32, g.v as f32, g.phi, g.width_m, g.quality])
+        })
+        .collect();
+    write_npy(&dir.join("grasps.npy"), &[grasps.len() / 6, 6], &grasps)?;
     let path = dir.join("meta.jsonl");
     let mut meta = std::io::BufWriter::new(std::fs::File::create(&path).map_err(|e| file_error(&path, e))?);
     for (seed, scenario, v) in views {

@@ -4,6 +4,8 @@
 
 use std::path::Path;
 
+use nalgebra::{Isometry3, Point3};
+
 use crate::camera::Frame;
 use crate::error::{Error, Result};
 use crate::scene::Scene;
@@ -80,6 +82,62 @@ pub fn write_frame(dir: &Path, scene: &Scene, frame: &Frame) -> Result<()> {
         png::ColorType::Rgb,
         png::BitDepth::Eight,
         &preview(frame),
+    )
+}
+
+/// A grasp to draw: pose, opening (m), and whether it worked.
+pub type DrawnGrasp = (Isometry3<f64>, f64, bool);
+
+/// Writes the preview of `frame` with each grasp drawn finger to finger
+/// (green: it worked; red: it failed) and a dot at its centre.
+pub fn write_grasp_snapshot(path: &Path, frame: &Frame, grasps: &[DrawnGrasp]) -> Result<()> {
+    let c = &frame.camera;
+    let (w, h) = (c.width as i64, c.height as i64);
+    let mut rgb = preview(frame);
+    let project = |p: Point3<f64>| -> Option<[f64; 2]> {
+        let q = c.world_from_camera.inverse_transform_point(&p);
+        (q.z > 1e-3).then(|| {
+            [
+                c.intrinsics.fx * q.x / q.z + c.intrinsics.cx,
+                c.intrinsics.fy * q.y / q.z + c.intrinsics.cy,
+            ]
+        })
+    };
+    let mut dot = |x: f64, y: f64, colour: [u8; 3], r: i64| {
+        for dy in -r..=r {
+            for dx in -r..=r {
+                let (px, py) = (x.round() as i64 + dx, y.round() as i64 + dy);
+                if (0..w).contains(&px) && (0..h).contains(&py) {
+                    let at = 3 * (py * w + px) as usize;
+                    rgb[at..at + 3].copy_from_slice(&colour);
+                }
+            }
+        }
+    };
+    for (pose, width, ok) in grasps {
+        let colour = if *ok { [40, 230, 60] } else { [240, 40, 40] };
+        let ends = [-width / 2.0, width / 2.0].map(|x| project(pose * Point3::new(x, 0.0, 0.0)));
+        if let [Some(a), Some(b)] = ends {
+            let n = (b[0] - a[0]).abs().max((b[1] - a[1]).abs()).ceil().max(1.0) as usize;
+            for k in 0..=n {
+                let t = k as f64 / n as f64;
+                dot(a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t, colour, 1);
+            }
+            for end in [a, b] {
+                dot(end[0], end[1], colour, 3);
+            }
+        }
+        if let Some(centre) = project(pose * Point3::origin()) {
+            dot(centre[0], centre[1], [255, 255, 255], 1);
+        }
+    }
+    write_png(
+        path,
+        c.width,
+        c.height,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &rgb,
     )
 }
 

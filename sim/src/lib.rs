@@ -14,12 +14,16 @@
 //! # Ok::<(), mvgrasp_sim::Error>(())
 //! ```
 //!
-//! Still to come (issue 3): grasp labels, physics confirmation in rapier3d,
-//! piles, mesh import, training targets and the dataset writer.
+//! Grasp labels ([`grasp`]), training targets ([`targets`]) and the dataset
+//! writer ([`dataset`]) make the training data; a rapier3d gripper
+//! ([`physics`]) confirms grasps, and [`eval`] runs the clear-the-table
+//! benchmark with a planner in the loop. Still to come (issue 3): piles and
+//! mesh import.
 
 pub mod camera;
 pub mod dataset;
 mod error;
+pub mod eval;
 pub mod files;
 pub mod grasp;
 pub mod objects;

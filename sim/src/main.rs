@@ -6,6 +6,8 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use mvgrasp_core::ModelContract;
 use mvgrasp_core::rng::SplitMix64;
+use mvgrasp_server::{BackendKind, settings::ModelSettings};
+use mvgrasp_sim::eval::{EpisodeConfig, Setting};
 use mvgrasp_sim::{
     camera::{Camera, NoiseModel, render},
     dataset::{DatagenConfig, generate},
@@ -15,6 +17,9 @@ use mvgrasp_sim::{
     targets::TargetConfig,
 };
 use nalgebra::Vector3;
+
+mod eval_command;
+use eval_command::{EvalRun, Planning, eval_command};
 
 /// Synthetic scenes and a simulated depth camera for mvgrasp.
 #[derive(Debug, Parser)]
@@ -76,6 +81,57 @@ enum Command {
         #[arg(long, default_value = "sim-1")]
         data_version: String,
     },
+    /// Clear-the-table in physics with the planner in the loop: success and
+    /// removal rates per scenario and planner setting, failure causes, and
+    /// planning times (see `eval.rs`). Writes OUT/eval.md and OUT/eval.json.
+    Eval {
+        /// The ONNX model.
+        #[arg(long, default_value = "models/mvgrasp.onnx")]
+        model: PathBuf,
+        /// onnx (the model through ONNX Runtime) or baseline (the analytic
+        /// moments network, no model file).
+        #[arg(long, value_enum, default_value_t = BackendKind::Onnx)]
+        backend: BackendKind,
+        /// libonnxruntime.so (else ORT_DYLIB_PATH, then the loader's path).
+        #[arg(long, env = "MVGRASP_ONNXRUNTIME")]
+        onnxruntime: Option<PathBuf>,
+        /// Scenarios (comma-separated).
+        #[arg(long, value_delimiter = ',', default_value = "isolated,packed,clutter")]
+        scenarios: Vec<String>,
+        /// Episodes per scenario (seeds seed, seed + 1, ...).
+        #[arg(long, default_value_t = 10)]
+        episodes: u64,
+        /// First seed. Training data used seeds from 1000 on; keep clear of them.
+        #[arg(long, default_value_t = 900_000)]
+        seed: u64,
+        /// Planner settings POLICY:TAU (entropy, all, top-down, random).
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_value = "entropy:0.8,all:0.8,top-down:0.8,random:0.8,entropy:0.9"
+        )]
+        settings: Vec<String>,
+        /// Shape families (comma-separated; default all).
+        #[arg(long, value_delimiter = ',')]
+        families: Vec<String>,
+        /// Output folder.
+        #[arg(long, default_value = "results")]
+        out: PathBuf,
+        /// Plan with the server at this endpoint (e.g. http://127.0.0.1:50051)
+        /// instead of in this process: the service itself is measured.
+        #[arg(long, conflicts_with_all = ["backend", "onnxruntime"])]
+        server: Option<String>,
+        /// Exit with an error if any scenario's success rate under the first
+        /// setting is below this (the CI floor).
+        #[arg(long)]
+        min_success: Option<f64>,
+        /// Worker threads (default: one per core).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Episodes per scenario drawn into OUT/snapshots (first setting).
+        #[arg(long, default_value_t = 2)]
+        snapshots: usize,
+    },
     /// Render one scene: depth.png + camera.json (what `mvgrasp plan` reads),
     /// labels.png and preview.png.
     RenderSample {
@@ -112,6 +168,57 @@ fn families_of(names: &[String]) -> anyhow::Result<Vec<Family>> {
 
 fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
+        Command::Eval {
+            model,
+            backend,
+            onnxruntime,
+            scenarios,
+            episodes,
+            seed,
+            settings,
+            families,
+            out,
+            min_success,
+            threads,
+            snapshots,
+            server,
+        } => {
+            if let Some(n) = threads {
+                rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
+            }
+            let scenarios = scenarios
+                .iter()
+                .map(|s| Scenario::parse(s).with_context(|| format!("--scenarios: unknown scenario {s:?}")))
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            let settings = settings
+                .iter()
+                .map(|s| Setting::parse(s))
+                .collect::<Result<Vec<_>, _>>()?;
+            let model = ModelSettings {
+                backend,
+                path: model,
+                onnxruntime_library: onnxruntime,
+                ..ModelSettings::default()
+            };
+            let config = EpisodeConfig {
+                families: families_of(&families)?,
+                ..EpisodeConfig::default()
+            };
+            let planning = match server {
+                Some(endpoint) => Planning::Server(endpoint),
+                None => Planning::InProcess(&model),
+            };
+            eval_command(&EvalRun {
+                planning,
+                scenarios,
+                seeds: seed..seed + episodes,
+                settings,
+                config,
+                out,
+                min_success,
+                snapshots,
+            })?;
+        }
         Command::PhysicsAgreement {
             scenes,
             seed,

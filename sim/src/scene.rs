@@ -129,6 +129,25 @@ impl Scene {
         }
     }
 
+    /// The object whose world box, grown by `margin_m`, holds `point`; of
+    /// several, the one whose box centre is nearest. How a detection (its
+    /// centroid) is matched to the scene object it is.
+    pub fn object_at(&self, point: &Point3<f64>, margin_m: f32) -> Option<usize> {
+        let p = Vector::new(point.x as f32, point.y as f32, point.z as f32);
+        self.objects
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| {
+                let (lo, hi) = (o.world_aabb.mins, o.world_aabb.maxs);
+                (0..3).all(|k| p[k] >= lo[k] - margin_m && p[k] <= hi[k] + margin_m)
+            })
+            .min_by(|(_, a), (_, b)| {
+                let d = |o: &PlacedObject| ((o.world_aabb.mins + o.world_aabb.maxs) * 0.5 - p).length();
+                d(a).total_cmp(&d(b))
+            })
+            .map(|(i, _)| i)
+    }
+
     /// The scene of `scenario` for `seed`, drawing objects from `families`.
     pub fn generate(scenario: Scenario, seed: u64, families: &[Family]) -> Result<Self> {
         if families.is_empty() {

@@ -25,6 +25,8 @@ use mvgrasp_core::{
     ViewPolicy,
 };
 
+use nalgebra::Point3;
+
 use crate::camera::Frame;
 use crate::error::{Error, Result};
 use crate::grasp::{GraspLabel, GripperModel, label_grasp};
@@ -75,6 +77,24 @@ pub struct LabelledView {
     pub candidates: usize,
     /// Positives among them.
     pub positives: usize,
+    /// The positives themselves (after annealing): the ground-truth grasps
+    /// the paper's accuracy metric compares predictions with.
+    pub grasps: Vec<PixelGrasp>,
+}
+
+/// A labelled positive grasp in view pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PixelGrasp {
+    /// Column of the grasp centre.
+    pub u: usize,
+    /// Row of the grasp centre.
+    pub v: usize,
+    /// Image angle of the closing direction, in [-pi/2, pi/2).
+    pub phi: f32,
+    /// Opening (m).
+    pub width_m: f32,
+    /// Painted quality (score times the centre-distance factor).
+    pub quality: f32,
 }
 
 /// A network that predicts nothing: the pipeline's views, without inference.
@@ -135,14 +155,8 @@ pub fn label_frame(
             continue;
         };
         // The scene object this detection is: the one whose box holds its centroid.
-        let centroid = detected.frame.world_from_object.translation.vector;
-        let Some(object) = scene.objects.iter().position(|o| {
-            let (lo, hi) = (o.world_aabb.mins, o.world_aabb.maxs);
-            (0..3).all(|k| {
-                let p = centroid[k] as f32;
-                p >= lo[k] - 0.01 && p <= hi[k] + 0.01
-            })
-        }) else {
+        let centroid = Point3::from(detected.frame.world_from_object.translation.vector);
+        let Some(object) = scene.object_at(&centroid, 0.01) else {
             continue;
         };
         let view = &dv.view;
@@ -152,7 +166,8 @@ pub fn label_frame(
             object_id: dv.object_id,
         };
         let mut maps = vec![0.0f32; 4 * l * l];
-        let (mut candidates, mut positives) = (0, 0);
+        let mut candidates = 0;
+        let mut grasps = Vec::new();
         let evaluate = |phi: f64, width: f64, u: usize, v: usize| -> Option<f32> {
             if !(width > 0.0 && width <= core_gripper.max_width_m) {
                 return None;
@@ -196,13 +211,20 @@ pub fn label_frame(
                             }
                         }
                     }
-                    positives += 1;
                     let centre = (l as f64 - 1.0) / 2.0;
                     let d = ((u as f64 - centre).powi(2) + (v as f64 - centre).powi(2)).sqrt() / centre;
                     let quality = best * (1.0 - 0.25 * d.min(1.0)) as f32;
-                    let phi = best_phi.sin().atan2(best_phi.cos()); // wrap, then fold to [-pi/2, pi/2)
+                    // A parallel-jaw grasp is the same at phi and phi + pi: fold to [-pi/2, pi/2].
+                    let phi = 0.5 * (2.0 * best_phi).sin().atan2((2.0 * best_phi).cos());
                     let (c2, s2) = ((2.0 * phi).cos() as f32, (2.0 * phi).sin() as f32);
                     let w = (best_width / f64::from(contract.width_scale_m)) as f32;
+                    grasps.push(PixelGrasp {
+                        u,
+                        v,
+                        phi: phi as f32,
+                        width_m: best_width as f32,
+                        quality,
+                    });
                     let r = config.paint_radius_px;
                     let reach = r.ceil() as i64;
                     for dy in -reach..=reach {
@@ -235,7 +257,8 @@ pub fn label_frame(
             image: view.image.clone(),
             maps,
             candidates,
-            positives,
+            positives: grasps.len(),
+            grasps,
         });
     }
     Ok(out)

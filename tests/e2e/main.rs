@@ -8,6 +8,7 @@
 mod scene;
 
 mod bad_input;
+mod clear_table;
 mod contract;
 mod fixture;
 mod onnx;

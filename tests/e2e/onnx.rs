@@ -64,3 +64,90 @@ fn a_model_without_the_contract_is_refused_by_name() {
     let err = OnnxNet::load(&s).unwrap_err().to_string();
     assert!(err.contains("does/not/exist.onnx"), "{err}");
 }
+
+/// A little-endian float32 C-order `.npy` file: (shape, values).
+fn read_npy_f32(path: &std::path::Path) -> (Vec<usize>, Vec<f32>) {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(&bytes[..6], b"\x93NUMPY", "{} is not .npy", path.display());
+    let (header_len, start) = match bytes[6] {
+        1 => (usize::from(u16::from_le_bytes([bytes[8], bytes[9]])), 10),
+        _ => (
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+            12,
+        ),
+    };
+    let header = std::str::from_utf8(&bytes[start..start + header_len]).unwrap();
+    assert!(header.contains("'descr': '<f4'"), "{header}");
+    assert!(header.contains("'fortran_order': False"), "{header}");
+    let dims = header
+        .split('(')
+        .nth(1)
+        .and_then(|s| s.split(')').next())
+        .unwrap();
+    let shape: Vec<usize> = dims
+        .split(',')
+        .filter(|d| !d.trim().is_empty())
+        .map(|d| d.trim().parse().unwrap())
+        .collect();
+    let values: Vec<f32> = bytes[start + header_len..]
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    assert_eq!(
+        values.len(),
+        shape.iter().product::<usize>(),
+        "{}",
+        path.display()
+    );
+    (shape, values)
+}
+
+/// The shipped model gives, through `ort`, what PyTorch gave when it was
+/// exported (models/golden, written by `mvgrasp_train.export --golden`):
+/// any drift between training and serving fails here.
+#[test]
+fn golden_vectors_match_through_ort() {
+    let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut model = settings(BackendKind::Onnx).model;
+    model.path = repo.join("models/mvgrasp.onnx");
+    let mut net = OnnxNet::load(&model).expect("models/mvgrasp.onnx loads");
+    let contract = net.contract().clone();
+    let l = contract.input_size_px;
+    let (in_shape, input) = read_npy_f32(&repo.join("models/golden/input.npy"));
+    let (out_shape, expected) = read_npy_f32(&repo.join("models/golden/output.npy"));
+    assert_eq!(in_shape, [in_shape[0], 1, l, l]);
+    assert_eq!(out_shape, [in_shape[0], 4, l, l]);
+    let mut batch = ViewBatch::new(l);
+    for view in input.chunks_exact(l * l) {
+        batch.push(view);
+    }
+    let maps = net.infer(&batch).expect("inference");
+    maps.check_matches(&batch).unwrap();
+    // The golden file is in the contract's channel order (export writes that order).
+    let order = [
+        Channel::Quality,
+        Channel::Cos2Phi,
+        Channel::Sin2Phi,
+        Channel::Width,
+    ];
+    let mut worst = 0.0f32;
+    for view in 0..in_shape[0] {
+        for (k, channel) in order.into_iter().enumerate() {
+            let got = maps.channel(view, contract.channel_index(channel));
+            let want = &expected[(view * 4 + k) * l * l..(view * 4 + k + 1) * l * l];
+            for (g, w) in got.iter().zip(want) {
+                worst = worst.max((g - w).abs());
+            }
+        }
+    }
+    assert!(
+        worst < 1e-4,
+        "ort differs from PyTorch's golden output by {worst}"
+    );
+    // Not a degenerate model: its quality map varies over a view with an object.
+    let q = maps.channel(0, contract.channel_index(Channel::Quality));
+    let (lo, hi) = q
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+    assert!(hi - lo > 0.1, "quality spans only {lo}..{hi}");
+}

@@ -364,6 +364,14 @@ mod targets {
         );
         for view in &views {
             assert_eq!(view.object, 0);
+            assert_eq!(view.grasps.len(), view.positives);
+            for g in &view.grasps {
+                // Each positive is painted at its own pixel, at least as high.
+                let i = g.v * l + g.u;
+                assert!(view.maps[q * l * l + i] >= g.quality && g.quality > 0.0);
+                assert!(g.phi.abs() <= std::f32::consts::FRAC_PI_2 + 1e-6, "{}", g.phi);
+                assert!(g.width_m > 0.0 && g.width_m <= 0.14, "{}", g.width_m);
+            }
             for i in 0..l * l {
                 let quality = view.maps[q * l * l + i];
                 let (cos2, sin2, width) = (
@@ -428,6 +436,20 @@ fn datagen_writes_shards_its_manifest_counts() {
         assert_eq!(maps.len(), 10 + header + n * 4 * 96 * 96 * 4);
         let text = String::from_utf8_lossy(&maps[10..10 + header]).into_owned();
         assert!(text.contains(&format!("'shape': ({n}, 4, 96, 96)")), "{text}");
+        // grasps.npy: one row of 6 per labelled positive.
+        let positives: usize = meta
+            .lines()
+            .map(|l| {
+                serde_json::from_str::<serde_json::Value>(l).unwrap()["positives"]
+                    .as_u64()
+                    .unwrap() as usize
+            })
+            .sum();
+        let grasps = std::fs::read(out.join(shard).join("grasps.npy")).unwrap();
+        let header = usize::from(u16::from_le_bytes([grasps[8], grasps[9]]));
+        assert_eq!(grasps.len(), 10 + header + positives * 6 * 4);
+        let text = String::from_utf8_lossy(&grasps[10..10 + header]).into_owned();
+        assert!(text.contains(&format!("'shape': ({positives}, 6)")), "{text}");
     }
     assert_eq!(lines, report.views);
     let _ = std::fs::remove_dir_all(&out);
@@ -482,5 +504,151 @@ mod physics {
             &config,
         );
         assert_eq!(outcome, TrialOutcome::NoGrip);
+    }
+}
+
+mod eval {
+    use mvgrasp_core::{GraspNet, MomentsNet, Planner, PlannerConfig, ViewPolicy};
+    use mvgrasp_sim::eval::{
+        Attempt, End, Episode, EpisodeConfig, Failure, InProcess, Setting, Summary, markdown_table,
+        run_episode,
+    };
+    use mvgrasp_sim::scene::Scenario;
+
+    #[test]
+    fn settings_parse_and_bad_ones_say_why() {
+        let s = Setting::parse("top-down:0.9").unwrap();
+        assert_eq!((s.policy, s.tau), (ViewPolicy::TopDown, 0.9));
+        assert_eq!(Setting::parse(&s.name()).unwrap(), s);
+        for (bad, why) in [
+            ("entropy", "POLICY:TAU"),
+            ("entropy:x", "tau"),
+            ("entropy:1.5", "outside"),
+            ("sideways:0.8", "not a view policy"),
+        ] {
+            let err = Setting::parse(bad).unwrap_err().to_string();
+            assert!(err.contains(why), "{bad}: {err}");
+        }
+    }
+
+    #[test]
+    fn episodes_keep_their_books_and_end_by_the_rules() {
+        let mut net = MomentsNet::default();
+        let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).unwrap();
+        let config = EpisodeConfig::default();
+        let setting = Setting::parse("entropy:0.3").unwrap();
+        let mut attempts = 0;
+        for (scenario, seed) in [
+            (Scenario::Isolated, 900_000),
+            (Scenario::Isolated, 900_001),
+            (Scenario::Packed, 900_000),
+        ] {
+            let e = run_episode(
+                scenario,
+                seed,
+                &setting,
+                &mut InProcess {
+                    planner: &planner,
+                    net: &mut net,
+                },
+                &config,
+            )
+            .unwrap();
+            // Same seed, same episode: scenes, cameras and noise are fixed by the seed.
+            let again = run_episode(
+                scenario,
+                seed,
+                &setting,
+                &mut InProcess {
+                    planner: &planner,
+                    net: &mut net,
+                },
+                &config,
+            )
+            .unwrap();
+            let outcomes = |e: &Episode| {
+                let tried: Vec<_> = e.attempts.iter().map(|a| (a.quality, a.failure)).collect();
+                (e.removed, e.end, tried)
+            };
+            assert_eq!(outcomes(&e), outcomes(&again));
+            assert_eq!(e.removed, e.successes());
+            assert!(e.removed <= e.objects);
+            assert!(e.attempts.len() <= 2 * e.objects + 3);
+            let tail = e
+                .attempts
+                .iter()
+                .rev()
+                .take_while(|a| a.failure.is_some())
+                .count();
+            match e.end {
+                End::Cleared => assert_eq!(e.removed, e.objects),
+                End::ConsecutiveFailures => assert_eq!(tail, 3),
+                End::NoGraspAboveTau => assert!(e.last_plan_ms.is_some()),
+                End::AttemptLimit => assert_eq!(e.attempts.len(), 2 * e.objects + 3),
+            }
+            assert!(e.attempts.iter().all(|a| a.quality >= 0.3 && a.plan_ms > 0.0));
+            attempts += e.attempts.len();
+        }
+        assert!(attempts > 0, "the baseline tried no grasp at all");
+    }
+
+    #[test]
+    fn summaries_count_rates_and_causes() {
+        let attempt = |failure| Attempt {
+            plan_ms: 10.0,
+            world_from_grasp: nalgebra::Isometry3::identity(),
+            width_m: 0.05,
+            quality: 0.9,
+            failure,
+        };
+        let episodes = vec![
+            Episode {
+                scenario: Scenario::Packed,
+                seed: 1,
+                objects: 4,
+                removed: 3,
+                attempts: vec![
+                    attempt(None),
+                    attempt(Some(Failure::SlipDuringLift)),
+                    attempt(None),
+                    attempt(None),
+                ],
+                end: End::NoGraspAboveTau,
+                last_plan_ms: Some(30.0),
+            },
+            Episode {
+                scenario: Scenario::Packed,
+                seed: 2,
+                objects: 5,
+                removed: 0,
+                attempts: vec![
+                    Attempt {
+                        plan_ms: 30.0,
+                        ..attempt(Some(Failure::CollisionOnApproach))
+                    },
+                    attempt(Some(Failure::CollisionOnApproach)),
+                    attempt(Some(Failure::CollisionOnApproach)),
+                ],
+                end: End::ConsecutiveFailures,
+                last_plan_ms: None,
+            },
+        ];
+        let s = Summary::of(
+            Scenario::Packed,
+            &Setting::parse("entropy:0.8").unwrap(),
+            &episodes,
+        );
+        assert_eq!((s.attempts, s.successes, s.removed, s.objects), (7, 3, 3, 9));
+        assert!((s.success_rate() - 3.0 / 7.0).abs() < 1e-12);
+        assert!((s.removal_rate() - 3.0 / 9.0).abs() < 1e-12);
+        assert_eq!(s.failures, [3, 1, 0, 0]);
+        assert_eq!((s.ended_without_grasp, s.cleared), (1, 0));
+        // Nine planning times (seven of 10 ms, two of 30 ms): p50 10, p90 30.
+        assert_eq!(s.plan_ms, [10.0, 30.0]);
+        let table = markdown_table(&[s]);
+        assert!(
+            table.contains("| packed | entropy:0.8 | 2 | 0.43 (3/7) | 0.33 (3/9) |"),
+            "{table}"
+        );
     }
 }

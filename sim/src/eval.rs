@@ -1,0 +1,620 @@
+//! Clear-the-table in simulation (DESIGN.md, method step 8; issue 6): the
+//! planner in the loop, every grasp tried in rapier3d.
+//!
+//! An episode: a scene and one camera, both fixed by the seed. Until the
+//! table is clear, three attempts in a row fail, no grasp clears tau, or
+//! `2 n + 3` attempts are spent (n objects): render a noisy frame, plan,
+//! take the best grasp, and try it:
+//!
+//! 1. the grasp is matched to a scene object (its detection's centroid
+//!    inside that object's box, 1 cm margin); none: *object missed*;
+//! 2. the hand is checked for collisions along the approach: at the grasp
+//!    and 2.5, 5, 7.5 and 10 cm back along the approach, open (analytic,
+//!    [`crate::grasp::label_grasp`]); any hit: *collision on approach*;
+//! 3. the rapier3d trial ([`crate::physics::trial`]) closes, lifts 15 cm and
+//!    shakes. Held: a success, and the object leaves the scene. The pads
+//!    never got a grip: *width too small* when the object is wider than the
+//!    stroke where the pads are, else *object missed*. Lost on the way up:
+//!    *slip during lift*.
+//!
+//! Not simulated (said in every report): the carry to the basket and the
+//! release (a held object counts as removed), and the disturbance a failed
+//! grasp causes (the scene stays as it was).
+
+use std::time::Instant;
+
+use mvgrasp_client::request::{depth_request, pose_from_message};
+use mvgrasp_client::{PlannerClient, pb};
+use mvgrasp_core::rng::SplitMix64;
+use mvgrasp_core::{GraspNet, Gripper, PlanOptions, Planner, ViewPolicy, Workspace};
+use nalgebra::{Isometry3, Point3, Translation3, Vector3};
+
+use crate::camera::{Camera, Frame, NoiseModel, render};
+use crate::error::{Error, Result};
+use crate::grasp::{GraspLabel, GripperModel, label_grasp};
+use crate::objects::Family;
+use crate::physics::{TrialConfig, TrialOutcome, trial};
+use crate::scene::{Scenario, Scene};
+
+/// Consecutive failed attempts that end an episode (the paper's rule).
+pub const MAX_CONSECUTIVE_FAILURES: usize = 3;
+
+/// Approach distances checked for collisions (m back from the grasp).
+const APPROACH_CHECKS_M: [f64; 5] = [0.0, 0.025, 0.05, 0.075, 0.10];
+
+/// One planner setting under test.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Setting {
+    /// Which views the network sees.
+    pub policy: ViewPolicy,
+    /// Grasps under this quality are not tried.
+    pub tau: f32,
+}
+
+impl Setting {
+    /// `entropy:0.8`, `all:0.9`, `top-down:0.8`, `random:0.8`.
+    pub fn parse(text: &str) -> Result<Self> {
+        let bad = |reason: String| Error::Invalid {
+            field: "setting",
+            reason,
+        };
+        let (policy, tau) = text
+            .split_once(':')
+            .ok_or_else(|| bad(format!("{text:?} is not POLICY:TAU")))?;
+        let tau: f32 = tau
+            .parse()
+            .map_err(|e| bad(format!("{text:?}: tau {tau:?}: {e}")))?;
+        if !(0.0..=1.0).contains(&tau) {
+            return Err(bad(format!("{text:?}: tau {tau} is outside [0, 1]")));
+        }
+        let policy = match policy {
+            "entropy" => ViewPolicy::Entropy,
+            "all" => ViewPolicy::All,
+            "top-down" => ViewPolicy::TopDown,
+            "random" => ViewPolicy::Random { seed: 0 },
+            other => {
+                return Err(bad(format!(
+                    "{other:?} is not a view policy (entropy, all, top-down, random)"
+                )));
+            }
+        };
+        Ok(Self { policy, tau })
+    }
+
+    /// The name [`Self::parse`] reads.
+    pub fn name(&self) -> String {
+        let policy = match self.policy {
+            ViewPolicy::Entropy => "entropy",
+            ViewPolicy::All => "all",
+            ViewPolicy::TopDown => "top-down",
+            ViewPolicy::Random { .. } => "random",
+        };
+        format!("{policy}:{}", self.tau)
+    }
+}
+
+/// Why an attempt failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Failure {
+    /// The hand hits the table or an object on its way in.
+    CollisionOnApproach,
+    /// Gripped, then lost during the lift or the shake.
+    SlipDuringLift,
+    /// The object is wider than the stroke where the pads are.
+    WidthTooSmall,
+    /// The grasp is not on one object, or the pads close on nothing.
+    ObjectMissed,
+}
+
+impl Failure {
+    /// Every failure, in report order.
+    pub const ALL: [Failure; 4] = [
+        Failure::CollisionOnApproach,
+        Failure::SlipDuringLift,
+        Failure::WidthTooSmall,
+        Failure::ObjectMissed,
+    ];
+
+    /// Report name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::CollisionOnApproach => "collision on approach",
+            Self::SlipDuringLift => "slip during lift",
+            Self::WidthTooSmall => "width too small",
+            Self::ObjectMissed => "object missed",
+        }
+    }
+}
+
+/// How an episode ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum End {
+    /// Every object removed.
+    Cleared,
+    /// Three failed attempts in a row.
+    ConsecutiveFailures,
+    /// No grasp reached tau (or no object was found).
+    NoGraspAboveTau,
+    /// `2 n + 3` attempts spent.
+    AttemptLimit,
+}
+
+impl End {
+    /// Report name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Cleared => "cleared",
+            Self::ConsecutiveFailures => "3 failures in a row",
+            Self::NoGraspAboveTau => "no grasp above tau",
+            Self::AttemptLimit => "attempt limit",
+        }
+    }
+}
+
+/// One attempt.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Attempt {
+    /// Planning time, frame to ranked grasps (ms).
+    pub plan_ms: f64,
+    /// The grasp tried.
+    pub world_from_grasp: Isometry3<f64>,
+    /// Its opening (m).
+    pub width_m: f64,
+    /// Quality the planner gave the grasp.
+    pub quality: f32,
+    /// `None`: a success.
+    pub failure: Option<Failure>,
+}
+
+/// One episode.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Episode {
+    /// Its scenario.
+    pub scenario: Scenario,
+    /// Its seed (scene and camera).
+    pub seed: u64,
+    /// Objects on the table at the start.
+    pub objects: usize,
+    /// Objects removed.
+    pub removed: usize,
+    /// Every attempt, in order.
+    pub attempts: Vec<Attempt>,
+    /// How it ended.
+    pub end: End,
+    /// Planning time of the call that ended it with no grasp (ms), if any.
+    pub last_plan_ms: Option<f64>,
+}
+
+impl Episode {
+    /// Successful attempts.
+    pub fn successes(&self) -> usize {
+        self.attempts.iter().filter(|a| a.failure.is_none()).count()
+    }
+}
+
+/// What an episode runs with (shared by every setting of a run).
+#[derive(Debug, Clone)]
+pub struct EpisodeConfig {
+    /// The gripper in the analytic checks and in physics.
+    pub gripper: GripperModel,
+    /// The physics trial.
+    pub trial: TrialConfig,
+    /// Sensor noise; `None`: a perfect sensor.
+    pub noise: Option<NoiseModel>,
+    /// Shape families scenes are drawn from.
+    pub families: Vec<Family>,
+}
+
+impl Default for EpisodeConfig {
+    fn default() -> Self {
+        Self {
+            gripper: GripperModel::robotiq_2f_140(),
+            trial: TrialConfig::default(),
+            noise: Some(NoiseModel::default()),
+            families: Family::ALL.to_vec(),
+        }
+    }
+}
+
+/// The scene and camera of episode `seed` (the same for every setting).
+pub fn episode_scene(scenario: Scenario, seed: u64, families: &[Family]) -> Result<(Scene, Camera)> {
+    let scene = Scene::generate(scenario, seed, families)?;
+    let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xE7A1);
+    let camera = Camera::random(&mut rng, Vector3::new(0.0, 0.0, f64::from(scene.table_z)), false);
+    Ok((scene, camera))
+}
+
+/// The best grasp of a plan, with where its object was seen.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlannedGrasp {
+    /// The grasp pose in the world.
+    pub world_from_grasp: Isometry3<f64>,
+    /// Opening (m).
+    pub width_m: f64,
+    /// Predicted quality.
+    pub quality: f32,
+    /// Centroid of the detected object it grasps (world).
+    pub object_centroid: Point3<f64>,
+}
+
+/// Whatever plans: the pipeline in this process, or a running server.
+pub trait GraspSource {
+    /// The best grasp for `frame` under `options`, or `None` when none
+    /// reaches `options.min_quality`.
+    fn best_grasp(
+        &mut self,
+        frame: &Frame,
+        workspace: Workspace,
+        options: &PlanOptions,
+    ) -> Result<Option<PlannedGrasp>>;
+}
+
+/// The planner and a network in this process.
+pub struct InProcess<'a> {
+    /// The pipeline.
+    pub planner: &'a Planner,
+    /// The network.
+    pub net: &'a mut dyn GraspNet,
+}
+
+impl GraspSource for InProcess<'_> {
+    fn best_grasp(
+        &mut self,
+        frame: &Frame,
+        workspace: Workspace,
+        options: &PlanOptions,
+    ) -> Result<Option<PlannedGrasp>> {
+        let bytes = frame.depth_le_bytes();
+        let input = frame.scene_input(&bytes, workspace);
+        let plan = self
+            .planner
+            .plan(&input, options, self.net)
+            .map_err(|e| Error::Scene(format!("planner: {e}")))?;
+        Ok(plan.grasps.first().and_then(|g| {
+            let object = plan.objects.iter().find(|o| o.id == g.object_id)?;
+            Some(PlannedGrasp {
+                world_from_grasp: g.world_from_grasp,
+                width_m: g.width_m,
+                quality: g.quality,
+                object_centroid: Point3::from(object.frame.world_from_object.translation.vector),
+            })
+        }))
+    }
+}
+
+/// A running server, over gRPC.
+/// Each call blocks on its own single-threaded runtime, so call it from
+/// plain threads, not from inside an async runtime.
+pub struct Remote {
+    runtime: tokio::runtime::Runtime,
+    client: PlannerClient,
+}
+
+impl Remote {
+    /// Connects to the server at `endpoint` (`http://host:port`).
+    pub fn connect(endpoint: &str) -> Result<Self> {
+        let failed = |e: &dyn std::fmt::Display| Error::Scene(format!("connecting to {endpoint}: {e}"));
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .map_err(|e| failed(&e))?;
+        let client = runtime
+            .block_on(PlannerClient::connect(endpoint))
+            .map_err(|e| failed(&e))?;
+        Ok(Self { runtime, client })
+    }
+
+    /// The served model's contract and provenance.
+    pub fn model_info(&mut self) -> Result<pb::ModelInfo> {
+        self.runtime
+            .block_on(self.client.model_info())
+            .map_err(|e| Error::Scene(format!("server: {e}")))
+    }
+}
+
+impl GraspSource for Remote {
+    fn best_grasp(
+        &mut self,
+        frame: &Frame,
+        workspace: Workspace,
+        options: &PlanOptions,
+    ) -> Result<Option<PlannedGrasp>> {
+        let c = &frame.camera;
+        let k = c.intrinsics;
+        let mut request = depth_request(
+            c.width,
+            c.height,
+            &frame.depth_mm,
+            pb::CameraIntrinsics {
+                fx: k.fx,
+                fy: k.fy,
+                cx: k.cx,
+                cy: k.cy,
+            },
+            &c.world_from_camera,
+            Some((workspace.min, workspace.max)),
+        );
+        request.gripper = Some(pb::Gripper {
+            max_width_m: options.gripper.max_width_m,
+            finger_width_m: options.gripper.finger_width_m,
+            finger_depth_m: options.gripper.finger_depth_m,
+        });
+        request.max_grasps = 1;
+        request.min_quality = Some(options.min_quality);
+        request.view_policy = match options.view_policy {
+            ViewPolicy::Entropy => pb::ViewPolicy::Entropy,
+            ViewPolicy::All => pb::ViewPolicy::All,
+            ViewPolicy::TopDown => pb::ViewPolicy::TopDown,
+            ViewPolicy::Random { seed } => {
+                request.random_seed = seed;
+                pb::ViewPolicy::Random
+            }
+        } as i32;
+        let response = self
+            .runtime
+            .block_on(self.client.plan(request))
+            .map_err(|e| Error::Scene(format!("server: {e}")))?;
+        Ok(response.grasps.first().and_then(|g| {
+            let object = response.objects.iter().find(|o| o.id == g.object_id)?;
+            Some(PlannedGrasp {
+                world_from_grasp: pose_from_message(g.pose.as_ref()),
+                width_m: g.width_m,
+                quality: g.quality,
+                object_centroid: Point3::from(
+                    pose_from_message(object.world_from_object.as_ref())
+                        .translation
+                        .vector,
+                ),
+            })
+        }))
+    }
+}
+
+/// The plan options of `setting` for episode `seed`.
+pub fn plan_options(setting: &Setting, seed: u64, gripper: &GripperModel) -> PlanOptions {
+    PlanOptions {
+        gripper: Gripper {
+            max_width_m: f64::from(gripper.max_width_m),
+            finger_width_m: f64::from(gripper.pad_width_m),
+            finger_depth_m: f64::from(gripper.pad_depth_m),
+        },
+        max_grasps: 1,
+        min_quality: setting.tau,
+        view_policy: match setting.policy {
+            ViewPolicy::Random { .. } => ViewPolicy::Random { seed },
+            other => other,
+        },
+        keep_views: false,
+    }
+}
+
+/// Runs one episode of `scenario` / `seed` with `setting`, planning with `source`.
+pub fn run_episode(
+    scenario: Scenario,
+    seed: u64,
+    setting: &Setting,
+    source: &mut dyn GraspSource,
+    config: &EpisodeConfig,
+) -> Result<Episode> {
+    let (mut scene, camera) = episode_scene(scenario, seed, &config.families)?;
+    let options = plan_options(setting, seed, &config.gripper);
+    let mut noise_rng = SplitMix64::new(seed ^ 0x0153_EAB0);
+    let mut episode = Episode {
+        scenario,
+        seed,
+        objects: scene.objects.len(),
+        removed: 0,
+        attempts: Vec::new(),
+        end: End::Cleared,
+        last_plan_ms: None,
+    };
+    let limit = 2 * episode.objects + 3;
+    loop {
+        if scene.objects.is_empty() {
+            episode.end = End::Cleared;
+            break;
+        }
+        let failures_in_a_row = episode
+            .attempts
+            .iter()
+            .rev()
+            .take_while(|a| a.failure.is_some())
+            .count();
+        if failures_in_a_row >= MAX_CONSECUTIVE_FAILURES {
+            episode.end = End::ConsecutiveFailures;
+            break;
+        }
+        if episode.attempts.len() >= limit {
+            episode.end = End::AttemptLimit;
+            break;
+        }
+        let frame = render(
+            &scene,
+            &camera,
+            config.noise.as_ref().map(|n| (n, &mut noise_rng)),
+        );
+        let started = Instant::now();
+        let best = source.best_grasp(&frame, scene.workspace(), &options)?;
+        let plan_ms = started.elapsed().as_secs_f64() * 1e3;
+        let Some(grasp) = best else {
+            episode.end = End::NoGraspAboveTau;
+            episode.last_plan_ms = Some(plan_ms);
+            break;
+        };
+        let failure = match scene.object_at(&grasp.object_centroid, 0.01) {
+            None => Some(Failure::ObjectMissed),
+            Some(target) => {
+                let failure = try_grasp(&scene, target, &grasp, config);
+                if failure.is_none() {
+                    scene.objects.remove(target);
+                    episode.removed += 1;
+                }
+                failure
+            }
+        };
+        episode.attempts.push(Attempt {
+            plan_ms,
+            world_from_grasp: grasp.world_from_grasp,
+            width_m: grasp.width_m,
+            quality: grasp.quality,
+            failure,
+        });
+    }
+    Ok(episode)
+}
+
+/// The approach check, then the physics trial, of `grasp` on object `target`.
+fn try_grasp(scene: &Scene, target: usize, grasp: &PlannedGrasp, config: &EpisodeConfig) -> Option<Failure> {
+    let pose = grasp.world_from_grasp;
+    let approach = pose.rotation * Vector3::z();
+    let mut final_label = None;
+    for back in APPROACH_CHECKS_M {
+        let at = Translation3::from(-approach * back) * pose;
+        // Open at the stroke on the way in, at the planned width at the grasp.
+        let width = if back == 0.0 {
+            grasp.width_m
+        } else {
+            f64::from(config.gripper.max_width_m)
+        };
+        let label = label_grasp(scene, target, &at, width, &config.gripper);
+        if let GraspLabel::Collision { what } = &label
+            && (back > 0.0 || !what.contains("closing"))
+        {
+            return Some(Failure::CollisionOnApproach);
+        }
+        if back == 0.0 {
+            final_label = Some(label);
+        }
+    }
+    match trial(
+        scene,
+        target,
+        &pose,
+        grasp.width_m,
+        &config.gripper,
+        &config.trial,
+    ) {
+        TrialOutcome::Held { .. } => None,
+        TrialOutcome::Dropped { .. } => Some(Failure::SlipDuringLift),
+        TrialOutcome::NoGrip => match final_label {
+            Some(GraspLabel::TooWide) => Some(Failure::WidthTooSmall),
+            _ => Some(Failure::ObjectMissed),
+        },
+    }
+}
+
+/// Episodes of one scenario under one setting, summed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summary {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// The setting's name.
+    pub setting: String,
+    /// Episodes.
+    pub episodes: usize,
+    /// Objects on the tables at the start.
+    pub objects: usize,
+    /// Objects removed.
+    pub removed: usize,
+    /// Attempts.
+    pub attempts: usize,
+    /// Successful attempts.
+    pub successes: usize,
+    /// Failed attempts by cause, in [`Failure::ALL`] order.
+    pub failures: [usize; 4],
+    /// Episodes that ended with no grasp above tau.
+    pub ended_without_grasp: usize,
+    /// Episodes that cleared the table.
+    pub cleared: usize,
+    /// Planning time percentiles (ms): 50th, 90th.
+    pub plan_ms: [f64; 2],
+}
+
+impl Summary {
+    /// Sums `episodes` (all of one scenario and setting).
+    pub fn of(scenario: Scenario, setting: &Setting, episodes: &[Episode]) -> Self {
+        let mut failures = [0; 4];
+        let mut times: Vec<f64> = Vec::new();
+        for e in episodes {
+            for a in &e.attempts {
+                times.push(a.plan_ms);
+                if let Some(f) = a.failure {
+                    failures[Failure::ALL.iter().position(|&x| x == f).unwrap_or(0)] += 1;
+                }
+            }
+            times.extend(e.last_plan_ms);
+        }
+        times.sort_by(f64::total_cmp);
+        let pct = |p: f64| {
+            if times.is_empty() {
+                f64::NAN
+            } else {
+                times[((times.len() - 1) as f64 * p).round() as usize]
+            }
+        };
+        Self {
+            scenario,
+            setting: setting.name(),
+            episodes: episodes.len(),
+            objects: episodes.iter().map(|e| e.objects).sum(),
+            removed: episodes.iter().map(|e| e.removed).sum(),
+            attempts: episodes.iter().map(|e| e.attempts.len()).sum(),
+            successes: episodes.iter().map(Episode::successes).sum(),
+            failures,
+            ended_without_grasp: episodes.iter().filter(|e| e.end == End::NoGraspAboveTau).count(),
+            cleared: episodes.iter().filter(|e| e.end == End::Cleared).count(),
+            plan_ms: [pct(0.5), pct(0.9)],
+        }
+    }
+
+    /// Successful attempts over attempts (NaN without attempts).
+    pub fn success_rate(&self) -> f64 {
+        self.successes as f64 / self.attempts as f64
+    }
+
+    /// Objects removed over objects at the start.
+    pub fn removal_rate(&self) -> f64 {
+        self.removed as f64 / self.objects as f64
+    }
+}
+
+/// The paper's simulated results (success, removal) per scenario, for the report.
+pub fn paper_numbers(scenario: Scenario) -> &'static str {
+    match scenario {
+        Scenario::Isolated => "0.926 success",
+        Scenario::Packed => "0.84 / 0.88 (tau 0.8)",
+        Scenario::Clutter => "removal >= 0.90 (real robot: 9 of 10 runs cleared)",
+    }
+}
+
+/// The Markdown table of `summaries`.
+pub fn markdown_table(summaries: &[Summary]) -> String {
+    let mut out = String::from(
+        "| scenario | setting | episodes | success | removal | attempts | cleared | no grasp > tau | collision on approach | slip during lift | width too small | object missed | plan p50 / p90 (ms) | paper |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
+    );
+    for s in summaries {
+        out.push_str(&format!(
+            "| {} | {} | {} | {:.2} ({}/{}) | {:.2} ({}/{}) | {} | {} | {} | {} | {} | {} | {} | {:.0} / {:.0} | {} |\n",
+            s.scenario.name(),
+            s.setting,
+            s.episodes,
+            s.success_rate(),
+            s.successes,
+            s.attempts,
+            s.removal_rate(),
+            s.removed,
+            s.objects,
+            s.attempts,
+            s.cleared,
+            s.ended_without_grasp,
+            s.failures[0],
+            s.failures[1],
+            s.failures[2],
+            s.failures[3],
+            s.plan_ms[0],
+            s.plan_ms[1],
+            paper_numbers(s.scenario),
+        ));
+    }
+    out
+}

@@ -1,0 +1,242 @@
+//! `sim eval`: runs the episodes in parallel (one network per worker),
+//! writes the report, and applies the CI floor.
+
+use std::ops::Range;
+use std::path::PathBuf;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use mvgrasp_core::{GraspNet, ModelContract, Planner, PlannerConfig};
+use mvgrasp_server::settings::ModelSettings;
+use mvgrasp_sim::camera::render;
+use mvgrasp_sim::eval::{
+    Episode, EpisodeConfig, Failure, GraspSource, InProcess, Remote, Setting, Summary, episode_scene,
+    markdown_table, run_episode,
+};
+use mvgrasp_sim::files::{DrawnGrasp, write_grasp_snapshot};
+use mvgrasp_sim::scene::Scenario;
+use rayon::prelude::*;
+
+/// Where grasps come from.
+pub enum Planning<'a> {
+    /// This process, with the model `sim eval` names.
+    InProcess(&'a ModelSettings),
+    /// A running server at this endpoint.
+    Server(String),
+}
+
+fn load_net(model: &ModelSettings) -> anyhow::Result<Box<dyn GraspNet + Send>> {
+    Ok(mvgrasp_server::backend::load(model)
+        .with_context(|| format!("loading {}", model.path.display()))?
+        .net)
+}
+
+enum Worker {
+    Net(Box<dyn GraspNet + Send>),
+    Remote(Box<Remote>),
+}
+
+fn git_revision() -> String {
+    std::process::Command::new("git")
+        .args(["rev-parse", "--short", "HEAD"])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_owned())
+        .unwrap_or_else(|| "unknown".to_owned())
+}
+
+/// One `sim eval` run.
+pub struct EvalRun<'a> {
+    /// Where grasps come from.
+    pub planning: Planning<'a>,
+    /// Scenarios.
+    pub scenarios: Vec<Scenario>,
+    /// Seeds, per scenario.
+    pub seeds: Range<u64>,
+    /// Planner settings compared.
+    pub settings: Vec<Setting>,
+    /// Gripper, physics, noise, families.
+    pub config: EpisodeConfig,
+    /// Report folder.
+    pub out: PathBuf,
+    /// The CI floor on the first setting's success rate.
+    pub min_success: Option<f64>,
+    /// Episodes per scenario drawn into `out/snapshots`.
+    pub snapshots: usize,
+}
+
+pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
+    let EvalRun {
+        planning,
+        scenarios,
+        seeds,
+        settings,
+        config,
+        out,
+        min_success,
+        snapshots,
+    } = run;
+    anyhow::ensure!(!settings.is_empty(), "--settings: at least one");
+    // The contract (and the model's name) from the model, or the server.
+    let (contract, model_name) = match planning {
+        Planning::InProcess(model) => (
+            load_net(model)?.contract().clone(),
+            model.path.display().to_string(),
+        ),
+        Planning::Server(endpoint) => {
+            let info = Remote::connect(endpoint)?.model_info()?;
+            let contract = ModelContract {
+                input_size_px: info.input_size_px as usize,
+                pixel_size_m: info.pixel_size_m as f32,
+                model_version: info.model_version.clone(),
+                data_version: info.data_version.clone(),
+                ..ModelContract::baseline()
+            };
+            (contract, format!("the server at {endpoint} ({})", info.backend))
+        }
+    };
+    let planner = Planner::new(PlannerConfig::default(), contract.clone())?;
+    let mut jobs: Vec<(Scenario, usize, u64)> = Vec::new();
+    for &scenario in scenarios {
+        for k in 0..settings.len() {
+            jobs.extend(seeds.clone().map(|seed| (scenario, k, seed)));
+        }
+    }
+    let bar = ProgressBar::new(jobs.len() as u64).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed} eta {eta} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let started = std::time::Instant::now();
+    let results: Vec<anyhow::Result<(usize, Episode)>> = jobs
+        .par_iter()
+        .map_init(
+            || match planning {
+                Planning::InProcess(model) => load_net(model).map(Worker::Net),
+                Planning::Server(endpoint) => Remote::connect(endpoint)
+                    .map(|r| Worker::Remote(Box::new(r)))
+                    .map_err(anyhow::Error::from),
+            },
+            |worker, &(scenario, k, seed)| {
+                let worker = worker.as_mut().map_err(|e| anyhow::anyhow!("{e:#}"))?;
+                let mut in_process;
+                let source: &mut dyn GraspSource = match worker {
+                    Worker::Net(net) => {
+                        in_process = InProcess {
+                            planner: &planner,
+                            net: net.as_mut(),
+                        };
+                        &mut in_process
+                    }
+                    Worker::Remote(remote) => remote.as_mut(),
+                };
+                let episode = run_episode(scenario, seed, &settings[k], source, config)
+                    .with_context(|| format!("{} seed {seed} {}", scenario.name(), settings[k].name()))?;
+                bar.inc(1);
+                Ok((k, episode))
+            },
+        )
+        .collect();
+    bar.finish_and_clear();
+    let results = results.into_iter().collect::<anyhow::Result<Vec<_>>>()?;
+    let mut summaries = Vec::new();
+    for &scenario in scenarios {
+        for (k, setting) in settings.iter().enumerate() {
+            let episodes: Vec<Episode> = results
+                .iter()
+                .filter(|(j, e)| *j == k && e.scenario == scenario)
+                .map(|(_, e)| e.clone())
+                .collect();
+            summaries.push(Summary::of(scenario, setting, &episodes));
+        }
+    }
+    // Snapshots: the first episodes of each scenario under the first setting,
+    // every attempt drawn over the episode's first (noiseless) frame.
+    let snapshot_dir = out.join("snapshots");
+    let mut snapshot_files = Vec::new();
+    for &scenario in scenarios {
+        let mut first: Vec<&Episode> = results
+            .iter()
+            .filter(|(k, e)| *k == 0 && e.scenario == scenario)
+            .map(|(_, e)| e)
+            .collect();
+        first.sort_by_key(|e| e.seed);
+        for e in first.into_iter().take(*snapshots) {
+            let (scene, camera) = episode_scene(scenario, e.seed, &config.families)?;
+            let frame = render(&scene, &camera, None);
+            let drawn: Vec<DrawnGrasp> = e
+                .attempts
+                .iter()
+                .map(|a| (a.world_from_grasp, a.width_m, a.failure.is_none()))
+                .collect();
+            std::fs::create_dir_all(&snapshot_dir)
+                .with_context(|| format!("creating {}", snapshot_dir.display()))?;
+            let name = format!("{}-{}.png", scenario.name(), e.seed);
+            write_grasp_snapshot(&snapshot_dir.join(&name), &frame, &drawn)?;
+            snapshot_files.push(name);
+        }
+    }
+    let command: Vec<String> = std::env::args().collect();
+    let table = markdown_table(&summaries);
+    let report = format!(
+        "# Clear-the-table in simulation\n\n- revision: `{}`\n- model: `{}` ({}, data {}), {} px views of {} mm\n- command: `{}`\n- seeds {}..{} per scenario, the same scenes and cameras for every setting; {:.0} s on {} threads\n\n{table}\n\
+         Success = successful attempts / attempts; removal = objects removed / objects at the start. \
+         Not simulated: the carry to the basket and the release (a held object counts as removed), and \
+         the disturbance a failed grasp causes (the scene stays as it was). The paper's pile scenario \
+         is not built yet (sim has no piles); `clutter` is 15-20 objects spread over the table.\n{}",
+        git_revision(),
+        model_name,
+        contract.model_version,
+        contract.data_version,
+        contract.input_size_px,
+        contract.pixel_size_m * 1000.0,
+        command.join(" "),
+        seeds.start,
+        seeds.end,
+        started.elapsed().as_secs_f64(),
+        rayon::current_num_threads(),
+        if snapshot_files.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "\nSnapshots (first setting; every attempt over the first frame, green worked, red failed): {}\n",
+                snapshot_files
+                    .iter()
+                    .map(|f| format!("[{f}](snapshots/{f})"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        },
+    );
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    std::fs::write(out.join("eval.md"), &report).with_context(|| format!("writing {}", out.display()))?;
+    let json = serde_json::json!({
+        "revision": git_revision(),
+        "command": command,
+        "model_version": contract.model_version,
+        "summaries": summaries.iter().map(|s| serde_json::json!({
+            "scenario": s.scenario.name(), "setting": s.setting, "episodes": s.episodes,
+            "objects": s.objects, "removed": s.removed, "attempts": s.attempts, "successes": s.successes,
+            "success_rate": s.success_rate(), "removal_rate": s.removal_rate(),
+            "failures": Failure::ALL.iter().zip(s.failures).map(|(f, n)| (f.name(), n)).collect::<std::collections::BTreeMap<_, _>>(),
+            "ended_without_grasp": s.ended_without_grasp, "cleared": s.cleared,
+            "plan_ms_p50": s.plan_ms[0], "plan_ms_p90": s.plan_ms[1],
+        })).collect::<Vec<_>>(),
+    });
+    std::fs::write(out.join("eval.json"), serde_json::to_string_pretty(&json)?)
+        .with_context(|| format!("writing {}", out.display()))?;
+    println!("{report}");
+    println!("wrote {}/eval.md and eval.json", out.display());
+    if let Some(floor) = *min_success {
+        for s in summaries.iter().filter(|s| s.setting == settings[0].name()) {
+            let rate = if s.attempts == 0 { 0.0 } else { s.success_rate() };
+            anyhow::ensure!(
+                rate >= floor,
+                "{} under {}: success rate {rate:.2} is below the floor {floor}",
+                s.scenario.name(),
+                s.setting
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,149 @@
+"""The paper's grasp accuracy, with numpy alone.
+
+A view's prediction is the grasp at the pixel of highest predicted quality,
+with the predicted angle and opening there. It is correct when some
+ground-truth positive of that view (`grasps.npy`) has an angle within 30
+degrees of it (angles are modulo 180: a parallel-jaw grasp is symmetric)
+and a grasp rectangle overlapping it with IoU > 25%. A rectangle is the
+opening (along the closing direction) by the finger pad width (across it),
+both in pixels. Accuracy counts views that have at least one positive;
+views without one are reported apart: how often the prediction there still
+clears a quality threshold.
+"""
+
+import numpy as np
+
+ANGLE_LIMIT = np.deg2rad(30.0)
+IOU_LIMIT = 0.25
+
+
+def decode(maps):
+    """Argmax-quality grasp per view: arrays (u, v, phi, opening_units, quality), [N] each.
+
+    `maps` is [N, 4, L, L] in the order quality, cos2phi, sin2phi, width.
+    """
+    n, _, l, _ = maps.shape
+    flat = maps[:, 0].reshape(n, -1)
+    best = flat.argmax(axis=1)
+    v, u = np.divmod(best, l)
+    at = maps[np.arange(n), :, v, u]  # [N, 4]
+    phi = 0.5 * np.arctan2(at[:, 2], at[:, 1])
+    return u, v, phi, at[:, 3], at[:, 0]
+
+
+def angle_diff(a, b):
+    """Difference of grasp angles modulo pi, in [0, pi/2]."""
+    d = np.mod(np.asarray(a) - np.asarray(b), np.pi)
+    return np.minimum(d, np.pi - d)
+
+
+def rectangle(u, v, phi, length, height):
+    """Corners (4 x 2, counter-clockwise in u, v) of a grasp rectangle centred on pixel (u, v)."""
+    c, s = np.cos(phi), np.sin(phi)
+    along, across = np.array([c, s]) * length / 2, np.array([-s, c]) * height / 2
+    centre = np.array([u + 0.5, v + 0.5])
+    return np.array([centre - along - across, centre + along - across,
+                     centre + along + across, centre - along + across])
+
+
+def _area(poly):
+    if len(poly) < 3:
+        return 0.0
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def _clip(subject, clipper):
+    """Sutherland-Hodgman: `subject` clipped by convex `clipper` (both counter-clockwise)."""
+    out = list(subject)
+    orient = np.sign(_signed_area(clipper)) or 1.0
+    for i in range(len(clipper)):
+        a, b = clipper[i], clipper[(i + 1) % len(clipper)]
+        inside = lambda p: orient * ((b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])) >= 0  # noqa: E731
+        points, out = out, []
+        for j in range(len(points)):
+            p, q = points[j], points[(j + 1) % len(points)]
+            if inside(q):
+                if not inside(p):
+                    out.append(_intersect(p, q, a, b))
+                out.append(q)
+            elif inside(p):
+                out.append(_intersect(p, q, a, b))
+        if not out:
+            return np.zeros((0, 2))
+    return np.array(out)
+
+
+def _signed_area(poly):
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * (np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def _intersect(p, q, a, b):
+    d1, d2 = q - p, b - a
+    denom = d1[0] * d2[1] - d1[1] * d2[0]
+    if denom == 0:
+        return q
+    t = ((a[0] - p[0]) * d2[1] - (a[1] - p[1]) * d2[0]) / denom
+    return p + t * d1
+
+
+def iou(r1, r2):
+    """Intersection over union of two convex polygons."""
+    inter = _area(_clip(r1, r2))
+    union = _area(r1) + _area(r2) - inter
+    return inter / union if union > 0 else 0.0
+
+
+def grasp_correct(pred, truth, pixel_m, pad_m):
+    """Whether `pred` = (u, v, phi, opening_m) matches a row of `truth` [k, >=4] (u, v, phi, opening_m)."""
+    if len(truth) == 0:
+        return False
+    u, v, phi, opening = pred
+    height = pad_m / pixel_m
+    length = max(opening / pixel_m, 1.0)
+    close = angle_diff(truth[:, 2], phi) < ANGLE_LIMIT
+    reach = (length + truth[:, 3] / pixel_m) / 2 + height
+    close &= np.hypot(truth[:, 0] - u, truth[:, 1] - v) < reach
+    if not close.any():
+        return False
+    mine = rectangle(u, v, phi, length, height)
+    for t in truth[close]:
+        other = rectangle(t[0], t[1], t[2], max(t[3] / pixel_m, 1.0), height)
+        if iou(mine, other) > IOU_LIMIT:
+            return True
+    return False
+
+
+def evaluate(pred_maps, ds, indices, threshold=0.5):
+    """Accuracy of `pred_maps` [len(indices), 4, L, L] on views `indices` of `ds`.
+
+    Returns a dict: accuracy over views with positives, per view axis, and the
+    share of views without positives whose best predicted quality clears
+    `threshold` (false alarms).
+    """
+    c = ds.contract
+    pixel_m, width_scale = c["pixel_size_m"], c["width_scale_m"]
+    pad_m = ds.manifest["gripper"]["pad_width_m"]
+    u, v, phi, width, quality = decode(pred_maps)
+    per_axis, empty, alarms = {}, 0, 0
+    for k, i in enumerate(indices):
+        truth = ds.grasps_of(i)
+        if len(truth) == 0:
+            empty += 1
+            alarms += int(quality[k] >= threshold)
+            continue
+        ok = grasp_correct((u[k], v[k], phi[k], width[k] * width_scale), truth, pixel_m, pad_m)
+        axis = ds.meta[i]["view"]
+        hits, total = per_axis.get(axis, (0, 0))
+        per_axis[axis] = (hits + int(ok), total + 1)
+    hits = sum(h for h, _ in per_axis.values())
+    total = sum(t for _, t in per_axis.values())
+    return {
+        "accuracy": hits / total if total else float("nan"),
+        "views_with_positives": total,
+        "per_view": {a: {"accuracy": h / t, "views": t} for a, (h, t) in sorted(per_axis.items())},
+        "views_without_positives": empty,
+        "false_alarm_rate": alarms / empty if empty else float("nan"),
+        "false_alarm_threshold": threshold,
+    }

@@ -1,0 +1,51 @@
+"""Plots training curves of one or more runs into a PNG.
+
+    python3 -m mvgrasp_train.plot OUT.png RUN_DIR[=LABEL] [RUN_DIR[=LABEL] ...]
+
+Left: train and held-out loss per epoch; right: held-out grasp accuracy
+(overall solid, per view dotted). Needs matplotlib.
+"""
+
+import json
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def read(run):
+    with open(os.path.join(run, "log.jsonl")) as f:
+        return [json.loads(line) for line in f if line.strip()]
+
+
+def main(argv):
+    out, runs = argv[0], argv[1:]
+    fig, (ax_loss, ax_acc) = plt.subplots(1, 2, figsize=(11, 4))
+    for k, spec in enumerate(runs):
+        path, _, label = spec.partition("=")
+        label = label or os.path.basename(path.rstrip("/"))
+        log = read(path)
+        colour = f"C{k}"
+        epochs = [e["epoch"] for e in log]
+        ax_loss.plot(epochs, [e["train_loss"] for e in log], "-", color=colour, label=f"{label} train")
+        ax_loss.plot(epochs, [e["eval_loss"] for e in log], "--", color=colour, label=f"{label} held-out")
+        ax_acc.plot(epochs, [100 * e["eval_accuracy"] for e in log], "-o", color=colour, label=label)
+        for view, style in zip(("top", "front", "side"), (":", (0, (1, 3)), (0, (3, 3)))):
+            values = [100 * e["eval_per_view"].get(view, float("nan")) for e in log]
+            ax_acc.plot(epochs, values, linestyle=style, color=colour, alpha=0.6, label=f"{label} {view}")
+    ax_loss.set(xlabel="epoch", ylabel="MSE (4 maps)", title="loss", yscale="log")
+    ax_acc.axhline(93, color="grey", lw=0.8)
+    ax_acc.text(1, 93.5, "paper: 93%", color="grey", fontsize=8)
+    ax_acc.set(xlabel="epoch", ylabel="% correct (IoU > 25%, angle < 30 deg)",
+               title="held-out-object grasp accuracy", ylim=(0, 100))
+    ax_loss.legend(fontsize=7)
+    ax_acc.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,149 @@
+"""Trains a grasp network on a `sim datagen` dataset.
+
+    python3 -m mvgrasp_train.train --data DATASET --out RUN_DIR \
+        [--architecture paper|narrow] [--epochs 8] [--minutes 60] [--batch 32]
+
+Splits 80/20 by object instance, trains with MSE on the four maps and Adam
+(lr 1e-3), augments each training view (augment.py), and after every epoch
+evaluates the paper's grasp accuracy on the held-out instances. Writes
+RUN_DIR/log.jsonl (one line per epoch), RUN_DIR/model.pt (the last epoch's
+weights: no model is picked on the held-out set) and RUN_DIR/eval.json.
+"""
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+import torch
+
+from . import augment, dataset, metric
+from .model import ARCHITECTURES, GraspNet
+
+
+def progress(done, total, started, extra=""):
+    width = 30
+    filled = int(width * done / max(total, 1))
+    elapsed = time.time() - started
+    eta = elapsed / max(done, 1) * (total - done)
+    sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} "
+                     f"{elapsed:5.0f}s eta {eta:4.0f}s {extra}")
+    sys.stderr.flush()
+
+
+def predict(model, views, batch=128):
+    model.eval()
+    out = []
+    with torch.no_grad():
+        for i in range(0, len(views), batch):
+            out.append(model(torch.from_numpy(np.ascontiguousarray(views[i:i + batch]))).numpy())
+    return np.concatenate(out) if out else np.zeros((0, 4) + views.shape[2:], np.float32)
+
+
+def evaluate(model, ds, indices, batch=128):
+    """Held-out MSE and the paper's accuracy on views `indices`."""
+    indices = np.asarray(indices)
+    pred = predict(model, ds.views[indices], batch)
+    loss = float(np.mean((pred - ds.maps[indices]) ** 2))
+    result = metric.evaluate(pred, ds, indices)
+    result["loss"] = loss
+    return result
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--data", required=True)
+    p.add_argument("--out", required=True)
+    p.add_argument("--architecture", choices=ARCHITECTURES, default="paper")
+    p.add_argument("--epochs", type=int, default=8)
+    p.add_argument("--minutes", type=float, default=0, help="stop after the epoch that passes this (0: no limit)")
+    p.add_argument("--batch", type=int, default=32)
+    p.add_argument("--lr", type=float, default=1e-3)
+    p.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
+    p.add_argument("--eval-views", type=int, default=1500, help="held-out views evaluated per epoch (all at the end)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--hold-out-families", default="",
+                   help="comma-separated shape families never trained on (evaluated apart)")
+    args = p.parse_args(argv)
+
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    torch.manual_seed(args.seed)
+    rng = np.random.default_rng(args.seed)
+    os.makedirs(args.out, exist_ok=True)
+    ds = dataset.load(args.data)
+    problems = dataset.check(ds)
+    if problems:
+        raise SystemExit(f"{args.data}: {problems}")
+    train_idx, eval_idx = dataset.split_by_instance(ds.meta)
+    unseen = {f for f in args.hold_out_families.split(",") if f}
+    unknown = unseen - {m["family"] for m in ds.meta}
+    if unknown:
+        raise SystemExit(f"--hold-out-families: {sorted(unknown)} not in the dataset")
+    family_idx = [i for i, m in enumerate(ds.meta) if m["family"] in unseen]
+    train_idx = [i for i in train_idx if ds.meta[i]["family"] not in unseen]
+    eval_idx = [i for i in eval_idx if ds.meta[i]["family"] not in unseen]
+    print(dataset.summary(ds), file=sys.stderr)
+    print(f"training on {len(train_idx)} views; held-out instances {len(eval_idx)} views; "
+          f"unseen families {sorted(unseen)} {len(family_idx)} views", file=sys.stderr)
+    eval_sample = np.sort(rng.permutation(eval_idx)[:args.eval_views])
+
+    device = torch.device(args.device)
+    model = GraspNet(args.architecture).to(device)
+    optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
+    config = {k: v for k, v in vars(args).items()}
+    config.update(train_views=len(train_idx), eval_views_total=len(eval_idx), unseen_family_views=len(family_idx), torch=torch.__version__,
+                  threads=torch.get_num_threads(), data_version=ds.manifest["data_version"],
+                  contract=ds.contract, gripper=ds.manifest["gripper"])
+    with open(os.path.join(args.out, "config.json"), "w") as f:
+        json.dump(config, f, indent=1)
+    log = open(os.path.join(args.out, "log.jsonl"), "w")
+    started = time.time()
+    for epoch in range(1, args.epochs + 1):
+        model.train()
+        order = rng.permutation(train_idx)
+        losses, t0 = [], time.time()
+        steps = len(order) // args.batch
+        for step in range(steps):
+            batch = order[step * args.batch:(step + 1) * args.batch]
+            pairs = [augment.augment(ds.views[i], ds.maps[i], rng) for i in batch]
+            x = torch.from_numpy(np.stack([a for a, _ in pairs])).to(device)
+            y = torch.from_numpy(np.stack([b for _, b in pairs])).to(device)
+            optimiser.zero_grad()
+            loss = torch.mean((model(x) - y) ** 2)
+            loss.backward()
+            optimiser.step()
+            losses.append(loss.item())
+            if step % 10 == 0 or step == steps - 1:
+                progress(step + 1, steps, t0, f"epoch {epoch} loss {np.mean(losses[-50:]):.5f}")
+        sys.stderr.write("\n")
+        model.cpu()
+        result = evaluate(model, ds, eval_sample)
+        model.to(device)
+        entry = {"epoch": epoch, "train_loss": float(np.mean(losses)), "eval_loss": result["loss"],
+                 "eval_accuracy": result["accuracy"],
+                 "eval_per_view": {k: v["accuracy"] for k, v in result["per_view"].items()},
+                 "epoch_s": time.time() - t0, "elapsed_s": time.time() - started}
+        log.write(json.dumps(entry) + "\n")
+        log.flush()
+        print(json.dumps(entry), file=sys.stderr)
+        if args.minutes and time.time() - started > args.minutes * 60:
+            print(f"time budget of {args.minutes} min reached after epoch {epoch}", file=sys.stderr)
+            break
+    model.cpu()
+    torch.save({"architecture": args.architecture, "state_dict": model.state_dict(), "epochs": epoch,
+                "train_s": time.time() - started}, os.path.join(args.out, "model.pt"))
+    final = evaluate(model, ds, eval_idx)
+    if family_idx:
+        final["unseen_families"] = {"families": sorted(unseen), **evaluate(model, ds, family_idx)}
+    final.update(epochs=epoch, train_s=time.time() - started)
+    with open(os.path.join(args.out, "eval.json"), "w") as f:
+        json.dump(final, f, indent=1)
+    print(json.dumps(final), file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

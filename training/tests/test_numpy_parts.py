@@ -1,0 +1,178 @@
+"""Tests of the numpy-only parts: dataset reader, augmentation, metric.
+
+    python3 -m unittest discover -s training/tests -v
+"""
+
+import json
+import os
+import sys
+import tempfile
+import unittest
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+
+from mvgrasp_train import augment, dataset, metric  # noqa: E402
+
+
+def line_view(l, u0, v0, phi, half):
+    """A view with a bar of surface along angle phi through (u0, v0), its maps painted on it."""
+    view = np.zeros((1, l, l), np.float32)
+    maps = np.zeros((4, l, l), np.float32)
+    for t in np.linspace(-half, half, 4 * half + 1):
+        u, v = int(round(u0 + t * np.cos(phi))), int(round(v0 + t * np.sin(phi)))
+        view[0, v, u] = 0.6
+        maps[:, v, u] = [1.0, np.cos(2 * phi), np.sin(2 * phi), 0.3]
+    return view, maps
+
+
+def angle_of(maps, u, v):
+    return 0.5 * np.arctan2(maps[2, v, u], maps[1, v, u])
+
+
+class Augmentation(unittest.TestCase):
+    def test_symmetries_move_pixels_and_angles_together(self):
+        l = 32
+        for phi in (0.3, -1.0, 1.2):
+            view, maps = line_view(l, 14, 17, phi, 6)
+            for k in range(8):
+                v2, m2 = augment.symmetry(view, maps, k)
+                # The painted bar still runs along the angle its pixels now carry.
+                vs, us = np.nonzero(m2[0])
+                angles = {round(float(angle_of(m2, u, v)), 6) for u, v in zip(us, vs)}
+                self.assertEqual(len(angles), 1)
+                a = angles.pop()
+                pts = np.stack([us, vs], 1).astype(float)
+                centred = pts - pts.mean(0)
+                direction = np.linalg.svd(centred)[2][0]
+                self.assertLess(metric.angle_diff(np.arctan2(direction[1], direction[0]), a), 0.1, (phi, k))
+                np.testing.assert_array_equal(v2[0] > 0, m2[0] > 0)
+
+    def test_rescale_scales_openings_and_keeps_the_centre(self):
+        view, maps = line_view(33, 16, 16, 0.0, 8)
+        v2, m2 = augment.rescale(view, maps, 1.1)
+        self.assertAlmostEqual(float(m2[3, 16, 16]), 0.33, places=5)
+        self.assertGreater(int((v2 > 0).sum()), int((view > 0).sum()))
+        v3, _ = augment.rescale(view, maps, 0.9)
+        self.assertLess(int((v3 > 0).sum()), int((view > 0).sum()))
+
+    def test_corruption_touches_only_the_surface(self):
+        rng = np.random.default_rng(1)
+        view, _ = line_view(32, 16, 16, 0.5, 10)
+        for _ in range(20):
+            v2 = augment.corrupt(view, rng, dropout=0.2, clip_share=1.0)
+            self.assertTrue(np.all(v2[view == 0] == 0))
+            self.assertTrue(np.all((v2 >= 0) & (v2 <= 1)))
+        self.assertFalse(np.array_equal(v2, view))
+
+
+class Metric(unittest.TestCase):
+    def test_iou_of_known_rectangles(self):
+        a = metric.rectangle(10, 10, 0.0, 10, 4)
+        self.assertAlmostEqual(metric.iou(a, a), 1.0)
+        shifted = metric.rectangle(15, 10, 0.0, 10, 4)  # half overlap: 20 / (40 + 40 - 20)
+        self.assertAlmostEqual(metric.iou(a, shifted), 1 / 3)
+        crossed = metric.rectangle(10, 10, np.pi / 2, 10, 4)  # 16 / (80 - 16)
+        self.assertAlmostEqual(metric.iou(a, crossed), 0.25)
+        self.assertEqual(metric.iou(a, metric.rectangle(40, 40, 0.0, 10, 4)), 0.0)
+
+    def test_angles_are_modulo_pi(self):
+        self.assertAlmostEqual(float(metric.angle_diff(np.pi / 2 - 0.1, -np.pi / 2 + 0.1)), 0.2)
+        self.assertAlmostEqual(float(metric.angle_diff(0.0, np.pi / 2)), np.pi / 2)
+
+    def test_a_grasp_is_correct_only_near_a_truth_in_angle_and_overlap(self):
+        truth = np.array([[20, 20, 0.2, 0.05, 0.9]], np.float32)
+        pixel, pad = 0.0025, 0.027
+        self.assertTrue(metric.grasp_correct((20, 20, 0.2, 0.05), truth, pixel, pad))
+        self.assertTrue(metric.grasp_correct((21, 20, 0.6, 0.055), truth, pixel, pad))
+        self.assertFalse(metric.grasp_correct((20, 20, 0.2 + np.deg2rad(31), 0.05), truth, pixel, pad))
+        self.assertFalse(metric.grasp_correct((40, 20, 0.2, 0.05), truth, pixel, pad))
+        self.assertFalse(metric.grasp_correct((20, 20, 0.2, 0.05), truth[:0], pixel, pad))
+
+    def test_decode_reads_the_argmax_pixel(self):
+        maps = np.zeros((2, 4, 8, 8), np.float32)
+        maps[0, :, 3, 5] = [0.9, 0.0, 1.0, 0.25]  # phi = pi/4
+        maps[1, :, 6, 1] = [0.4, -1.0, 0.0, 0.5]  # phi = pi/2
+        u, v, phi, w, q = metric.decode(maps)
+        np.testing.assert_array_equal(u, [5, 1])
+        np.testing.assert_array_equal(v, [3, 6])
+        self.assertAlmostEqual(float(phi[0]), np.pi / 4, places=6)
+        self.assertAlmostEqual(abs(float(phi[1])), np.pi / 2, places=6)
+        np.testing.assert_allclose(q, [0.9, 0.4])
+
+
+def write_dataset(root, l=8):
+    """A two-shard dataset in `sim datagen`'s format, written by hand."""
+    contract = {"input_size_px": l, "pixel_size_m": 0.0025, "width_scale_m": 0.2,
+                "normalisation": "cube-v1", "outputs": ["quality", "cos2phi", "sin2phi", "width"]}
+    shards, meta_all, views_total, positives_total = [], [], 0, 0
+    for s, views_in_shard in enumerate([2, 1]):
+        name = f"shard_{s:05}"
+        os.makedirs(os.path.join(root, name))
+        views = np.zeros((views_in_shard, 1, l, l), np.float32)
+        maps = np.zeros((views_in_shard, 4, l, l), np.float32)
+        grasps = []
+        for i in range(views_in_shard):
+            views[i, 0, 2:6, 2:6] = 0.5
+            if (s, i) != (0, 1):
+                maps[i, :, 4, 3] = [0.8, 1.0, 0.0, 0.25]
+                grasps.append([i, 3, 4, 0.0, 0.05, 0.8])
+        np.save(os.path.join(root, name, "views.npy"), views)
+        np.save(os.path.join(root, name, "maps.npy"), maps)
+        np.save(os.path.join(root, name, "grasps.npy"), np.array(grasps, np.float32).reshape(-1, 6))
+        with open(os.path.join(root, name, "meta.jsonl"), "w") as f:
+            for i in range(views_in_shard):
+                positives = int(any(g[0] == i for g in grasps))
+                positives_total += positives > 0
+                m = {"instance": f"{s}:{i}", "view": "top", "positives": positives, "family": "box"}
+                meta_all.append(m)
+                f.write(json.dumps(m) + "\n")
+        shards.append(name)
+        views_total += views_in_shard
+    manifest = {"format_version": 2, "contract": contract, "shards": shards, "views": views_total,
+                "views_with_positives": positives_total,
+                "gripper": {"max_width_m": 0.14, "pad_width_m": 0.027}}
+    with open(os.path.join(root, "manifest.json"), "w") as f:
+        json.dump(manifest, f)
+
+
+class Reader(unittest.TestCase):
+    def test_reads_shards_with_global_grasp_indices_and_checks_them(self):
+        with tempfile.TemporaryDirectory() as root:
+            write_dataset(root)
+            ds = dataset.load(root)
+            self.assertEqual(ds.views.shape, (3, 1, 8, 8))
+            self.assertEqual(dataset.check(ds), [])
+            self.assertEqual(len(ds.grasps_of(0)), 1)
+            self.assertEqual(len(ds.grasps_of(1)), 0)
+            np.testing.assert_array_equal(ds.grasps_of(2)[:, :2], [[3, 4]])
+            # The metric on the targets themselves: every view with a positive is a hit.
+            result = metric.evaluate(ds.maps, ds, [0, 1, 2])
+            self.assertEqual(result["accuracy"], 1.0)
+            self.assertEqual(result["views_without_positives"], 1)
+            # A painted pixel without its grasp row is caught.
+            ds.maps[1, :, 1, 1] = [0.5, 1.0, 0.0, 0.2]
+            self.assertTrue(any("painted" in p for p in dataset.check(ds)))
+
+    def test_rejects_another_format_version(self):
+        with tempfile.TemporaryDirectory() as root:
+            write_dataset(root)
+            path = os.path.join(root, "manifest.json")
+            with open(path) as f:
+                manifest = json.load(f)
+            manifest["format_version"] = 1
+            with open(path, "w") as f:
+                json.dump(manifest, f)
+            with self.assertRaisesRegex(ValueError, "format_version 1"):
+                dataset.load(root)
+
+    def test_split_keeps_instances_whole_and_is_about_80_20(self):
+        meta = [{"instance": f"{i // 3}:0"} for i in range(3000)]
+        train, held = dataset.split_by_instance(meta)
+        self.assertFalse({meta[i]["instance"] for i in train} & {meta[i]["instance"] for i in held})
+        self.assertAlmostEqual(len(held) / 3000, 0.2, delta=0.04)
+
+
+if __name__ == "__main__":
+    unittest.main()

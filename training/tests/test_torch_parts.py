@@ -1,0 +1,91 @@
+"""Tests that need PyTorch, onnx and onnxruntime; skipped, saying so, without them.
+
+CI does not install PyTorch (a 5 GB CUDA build); run these where it is:
+    python3 -m unittest discover -s training/tests -v
+"""
+
+import importlib.util
+import os
+import sys
+import tempfile
+import unittest
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+
+MISSING = [m for m in ("torch", "onnx", "onnxruntime") if importlib.util.find_spec(m) is None]
+REASON = f"needs {', '.join(MISSING)} (not installed; CI does not install PyTorch)"
+
+
+@unittest.skipIf(MISSING, REASON)
+class Network(unittest.TestCase):
+    def setUp(self):
+        import torch
+        torch.manual_seed(0)
+
+    def trained_a_little(self, architecture, size=48):
+        import torch
+        from mvgrasp_train.model import GraspNet
+        model = GraspNet(architecture)
+        opt = torch.optim.Adam(model.parameters(), 1e-3)
+        x = torch.rand(4, 1, size, size)
+        for _ in range(3):  # moves the BatchNorm statistics away from their defaults
+            opt.zero_grad()
+            model(x).square().mean().backward()
+            opt.step()
+        return model.eval()
+
+    def test_output_is_the_input_size_with_quality_in_0_1(self):
+        import torch
+        from mvgrasp_train.model import GraspNet
+        for arch in ("paper", "narrow"):
+            for size in (72, 96):
+                out = GraspNet(arch).eval()(torch.rand(3, 1, size, size))
+                self.assertEqual(tuple(out.shape), (3, 4, size, size))
+                self.assertTrue(bool(((out[:, 0] >= 0) & (out[:, 0] <= 1)).all()))
+
+    def test_the_paper_layers_are_there(self):
+        from torch import nn
+        from mvgrasp_train.model import GraspNet
+        convs = [m for m in GraspNet("paper").body.modules() if isinstance(m, (nn.Conv2d, nn.ConvTranspose2d))]
+        shapes = [(type(m).__name__[:4], m.kernel_size[0], m.out_channels, m.stride[0]) for m in convs]
+        self.assertEqual(shapes, [("Conv", 9, 8, 3), ("Conv", 5, 16, 2), ("Conv", 5, 16, 2), ("Conv", 3, 32, 1),
+                                  ("Conv", 3, 32, 1), ("Conv", 3, 32, 1), ("Conv", 3, 32, 1), ("Conv", 3, 32, 1),
+                                  ("Conv", 3, 32, 1), ("Conv", 5, 16, 2), ("Conv", 5, 32, 2), ("Conv", 9, 32, 3)])
+        bns = [m for m in GraspNet("paper").body.modules() if isinstance(m, nn.BatchNorm2d)]
+        self.assertEqual(len(bns), 12)
+
+    def test_folding_batchnorm_keeps_the_function(self):
+        import torch
+        from mvgrasp_train.model import fold_batchnorm
+        model = self.trained_a_little("paper")
+        x = torch.rand(2, 1, 48, 48)
+        with torch.no_grad():
+            diff = (model(x) - fold_batchnorm(model)(x)).abs().max().item()
+        self.assertLess(diff, 1e-5)
+
+    def test_export_matches_pytorch_and_carries_the_contract(self):
+        import onnx
+        import onnxruntime
+        from mvgrasp_train import export
+        model = self.trained_a_little("narrow", 48)
+        contract = {"input_size_px": 48, "pixel_size_m": 0.0025, "width_scale_m": 0.2, "normalisation": "cube-v1"}
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "m.onnx")
+            ops = export.export(model, 48, path, export.contract_metadata(contract, "t-1", "sim-test"))
+            self.assertNotIn("BatchNormalization", ops)
+            meta = {p.key: p.value for p in onnx.load(path).metadata_props}
+            self.assertEqual(meta["mvgrasp.input_size_px"], "48")
+            self.assertEqual(meta["mvgrasp.outputs"], "quality,cos2phi,sin2phi,width")
+            self.assertEqual(meta["mvgrasp.data_version"], "sim-test")
+            for batch in (1, 5):  # the batch axis is dynamic
+                views = np.random.default_rng(batch).random((batch, 1, 48, 48), dtype=np.float32)
+                worst, _ = export.compare(model, path, views)
+                self.assertLess(worst, export.TOLERANCE)
+            session = onnxruntime.InferenceSession(path, providers=["CPUExecutionProvider"])
+            self.assertEqual(session.get_inputs()[0].shape[0], "batch")
+
+
+if __name__ == "__main__":
+    unittest.main()
