@@ -9,8 +9,9 @@
 //! 1. the grasp is matched to a scene object (its detection's centroid
 //!    inside that object's box, 1 cm margin); none: *object missed*;
 //! 2. the hand is checked for collisions along the approach: at the grasp
-//!    and 2.5, 5, 7.5 and 10 cm back along the approach, open (analytic,
-//!    [`crate::grasp::label_grasp`]); any hit: *collision on approach*;
+//!    and 2.5, 5, 7.5 and 10 cm back along the approach, pre-shaped to the
+//!    planned width plus 2 cm (analytic, [`crate::grasp::label_grasp`]);
+//!    any hit: *collision on approach*;
 //! 3. the rapier3d trial ([`crate::physics::trial`]) closes, lifts 15 cm and
 //!    shakes. Held: a success, and the object leaves the scene. The pads
 //!    never got a grip: *width too small* when the object is wider than the
@@ -38,6 +39,9 @@ use crate::scene::{Scenario, Scene};
 
 /// Consecutive failed attempts that end an episode (the paper's rule).
 pub const MAX_CONSECUTIVE_FAILURES: usize = 3;
+
+/// Opening beyond the planned width while the hand approaches (m).
+const APPROACH_MARGIN_M: f64 = 0.02;
 
 /// Approach distances checked for collisions (m back from the grasp).
 const APPROACH_CHECKS_M: [f64; 5] = [0.0, 0.025, 0.05, 0.075, 0.10];
@@ -470,11 +474,11 @@ fn try_grasp(scene: &Scene, target: usize, grasp: &PlannedGrasp, config: &Episod
     let mut final_label = None;
     for back in APPROACH_CHECKS_M {
         let at = Translation3::from(-approach * back) * pose;
-        // Open at the stroke on the way in, at the planned width at the grasp.
+        // Pre-shaped on the way in: the planned width plus 2 cm, within the stroke.
         let width = if back == 0.0 {
             grasp.width_m
         } else {
-            f64::from(config.gripper.max_width_m)
+            (grasp.width_m + APPROACH_MARGIN_M).min(f64::from(config.gripper.max_width_m))
         };
         let label = label_grasp(scene, target, &at, width, &config.gripper);
         if let GraspLabel::Collision { what } = &label

@@ -652,3 +652,50 @@ mod eval {
         );
     }
 }
+
+#[test]
+fn snapshots_draw_a_grasp_where_the_camera_sees_it() {
+    use mvgrasp_sim::files::write_grasp_snapshot;
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+
+    let table_z = 0.3;
+    let scene = Scene {
+        table_z,
+        table_half: [0.6, 0.5],
+        objects: Vec::new(),
+        scenario: Scenario::Isolated,
+        seed: 0,
+    };
+    let frame = render(&scene, &top_down(table_z, 1.0), None);
+    let path = std::env::temp_dir().join(format!("mvgrasp-snapshot-{}.png", std::process::id()));
+    // A 10 cm grasp on the table centre, closing along world x: seen from
+    // 1 m above at 600 px focal length, its fingers are 60 px apart.
+    let grasp = Isometry3::from_parts(
+        Translation3::new(0.0, 0.0, f64::from(table_z)),
+        UnitQuaternion::identity(),
+    );
+    write_grasp_snapshot(&path, &frame, &[(grasp, 0.10, true)]).unwrap();
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut rgb = vec![0; reader.output_buffer_size().unwrap()];
+    reader.next_frame(&mut rgb).unwrap();
+    let at = |x: usize, y: usize| &rgb[3 * (y * 640 + x)..3 * (y * 640 + x) + 3];
+    let green = [40u8, 230, 60];
+    let (cx, cy) = (320usize, 240usize);
+    let greens: Vec<usize> = (0..640)
+        .filter(|&x| at(x, cy) == green || at(x, cy - 1) == green)
+        .collect();
+    assert!(!greens.is_empty(), "no grasp drawn on the centre row");
+    let span = greens.last().unwrap() - greens.first().unwrap();
+    assert!(
+        (60..=70).contains(&span),
+        "fingers {span} px apart, expected about 60 (+ the end dots)"
+    );
+    assert!(greens.first().unwrap().abs_diff(cx - 30) <= 4);
+    assert_eq!(
+        at(100, 100),
+        at(540, 380),
+        "the table stays grey away from the grasp"
+    );
+    let _ = std::fs::remove_file(&path);
+}
