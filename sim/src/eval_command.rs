@@ -38,7 +38,7 @@ enum Worker {
 
 fn git_revision() -> String {
     std::process::Command::new("git")
-        .args(["rev-parse", "--short", "HEAD"])
+        .args(["describe", "--always", "--dirty"])
         .output()
         .ok()
         .filter(|o| o.status.success())
@@ -50,6 +50,8 @@ fn git_revision() -> String {
 pub struct EvalRun<'a> {
     /// Where grasps come from.
     pub planning: Planning<'a>,
+    /// The in-process planner's configuration.
+    pub planner: PlannerConfig,
     /// Scenarios.
     pub scenarios: Vec<Scenario>,
     /// Seeds, per scenario.
@@ -69,6 +71,7 @@ pub struct EvalRun<'a> {
 pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
     let EvalRun {
         planning,
+        planner: planner_config,
         scenarios,
         seeds,
         settings,
@@ -96,7 +99,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
             (contract, format!("the server at {endpoint} ({})", info.backend))
         }
     };
-    let planner = Planner::new(PlannerConfig::default(), contract.clone())?;
+    let planner = Planner::new(planner_config.clone(), contract.clone())?;
     let mut jobs: Vec<(Scenario, usize, u64)> = Vec::new();
     for &scenario in scenarios {
         for k in 0..settings.len() {

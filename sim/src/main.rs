@@ -4,8 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
-use mvgrasp_core::ModelContract;
 use mvgrasp_core::rng::SplitMix64;
+use mvgrasp_core::{ModelContract, PlannerConfig};
 use mvgrasp_server::{BackendKind, settings::ModelSettings};
 use mvgrasp_sim::eval::{EpisodeConfig, Setting};
 use mvgrasp_sim::{
@@ -128,6 +128,10 @@ enum Command {
         /// Worker threads (default: one per core).
         #[arg(long)]
         threads: Option<usize>,
+        /// Added to every predicted opening by the in-process planner (mm;
+        /// default: the planner's own, `DecodeConfig::opening_margin_m`).
+        #[arg(long)]
+        opening_margin_mm: Option<f64>,
         /// Episodes per scenario drawn into OUT/snapshots (first setting).
         #[arg(long, default_value_t = 2)]
         snapshots: usize,
@@ -182,6 +186,7 @@ fn main() -> anyhow::Result<()> {
             threads,
             snapshots,
             server,
+            opening_margin_mm,
         } => {
             if let Some(n) = threads {
                 rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
@@ -208,8 +213,13 @@ fn main() -> anyhow::Result<()> {
                 Some(endpoint) => Planning::Server(endpoint),
                 None => Planning::InProcess(&model),
             };
+            let mut planner = PlannerConfig::default();
+            if let Some(mm) = opening_margin_mm {
+                planner.decode.opening_margin_m = mm / 1000.0;
+            }
             eval_command(&EvalRun {
                 planning,
+                planner,
                 scenarios,
                 seeds: seed..seed + episodes,
                 settings,

@@ -8,10 +8,11 @@ use mvgrasp_sim::scene::Scenario;
 
 use crate::fixture::settings;
 
-/// Success rate the shipped model must keep on the quick episodes.
-/// `sim eval --scenarios isolated --episodes 8 --settings entropy:0.8`
-/// measured QUICK_MEASURED for the model this floor was set with.
-const FLOOR: f64 = 0.0;
+/// Success rate the shipped model must keep on the quick episodes. For
+/// `mvgrasp-1-72px`, `sim eval --scenarios isolated --episodes 8 --settings
+/// all:0.1` measured 0.64 (7 of 11 attempts; 0.33 without the planner's
+/// 2 cm opening margin). A broken model, export or decoder falls far below.
+const FLOOR: f64 = 0.3;
 
 #[test]
 fn the_shipped_model_clears_isolated_objects_in_physics() {
@@ -19,7 +20,7 @@ fn the_shipped_model_clears_isolated_objects_in_physics() {
     model.path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models/mvgrasp.onnx");
     let mut net = backend::load(&model).expect("models/mvgrasp.onnx loads").net;
     let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).unwrap();
-    let setting = Setting::parse("entropy:0.8").unwrap();
+    let setting = Setting::parse("all:0.1").unwrap();
     let config = EpisodeConfig::default();
     let episodes: Vec<_> = (900_000..900_008)
         .map(|seed| {

@@ -1,6 +1,9 @@
 """Plots training curves of one or more runs into a PNG.
 
-    python3 -m mvgrasp_train.plot OUT.png RUN_DIR[=LABEL] [RUN_DIR[=LABEL] ...]
+    python3 -m mvgrasp_train.plot OUT.png RUN_DIR[,STAGE2_DIR...][=LABEL] ...
+
+Runs joined by commas are stages of one training (`train --init`), drawn
+one after the other with a dotted line where a stage starts.
 
 Left: train and held-out loss per epoch; right: held-out grasp accuracy
 (overall solid, per view dotted). Needs matplotlib.
@@ -16,9 +19,18 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 
-def read(run):
-    with open(os.path.join(run, "log.jsonl")) as f:
-        return [json.loads(line) for line in f if line.strip()]
+def read(runs):
+    """The epochs of comma-separated stages, numbered on; and where each later stage starts."""
+    log, starts = [], []
+    for k, run in enumerate(runs.split(",")):
+        with open(os.path.join(run, "log.jsonl")) as f:
+            stage = [json.loads(line) for line in f if line.strip()]
+        if k:
+            starts.append(len(log) + 0.5)
+        for e in stage:
+            e["epoch"] = len(log) + 1
+            log.append(e)
+    return log, starts
 
 
 def main(argv):
@@ -26,9 +38,11 @@ def main(argv):
     fig, (ax_loss, ax_acc) = plt.subplots(1, 2, figsize=(11, 4))
     for k, spec in enumerate(runs):
         path, _, label = spec.partition("=")
-        label = label or os.path.basename(path.rstrip("/"))
-        log = read(path)
+        label = label or os.path.basename(path.split(",")[0].rstrip("/"))
+        log, starts = read(path)
         colour = f"C{k}"
+        for x in starts:
+            ax_acc.axvline(x, color=colour, linestyle=":", linewidth=0.8)
         epochs = [e["epoch"] for e in log]
         ax_loss.plot(epochs, [e["train_loss"] for e in log], "-", color=colour, label=f"{label} train")
         ax_loss.plot(epochs, [e["eval_loss"] for e in log], "--", color=colour, label=f"{label} held-out")

@@ -4,7 +4,7 @@
         [--architecture paper|narrow] [--epochs 8] [--minutes 60] [--batch 32]
 
 Splits 80/20 by object instance, trains with MSE on the four maps and Adam
-(lr 1e-3), augments each training view (augment.py), and after every epoch
+(lr 1e-3; `--init RUN --lr 1e-4` continues a run as a second, lower-rate stage), augments each training view (augment.py), and after every epoch
 evaluates the paper's grasp accuracy on the held-out instances. Writes
 RUN_DIR/log.jsonl (one line per epoch), RUN_DIR/model.pt (the last epoch's
 weights: no model is picked on the held-out set) and RUN_DIR/eval.json.
@@ -65,6 +65,7 @@ def main(argv=None):
     p.add_argument("--eval-views", type=int, default=1500, help="held-out views evaluated per epoch (all at the end)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--device", default="cpu")
+    p.add_argument("--init", help="start from this run's model.pt (e.g. a second stage at a lower --lr)")
     p.add_argument("--hold-out-families", default="",
                    help="comma-separated shape families never trained on (evaluated apart)")
     args = p.parse_args(argv)
@@ -92,7 +93,13 @@ def main(argv=None):
     eval_sample = np.sort(rng.permutation(eval_idx)[:args.eval_views])
 
     device = torch.device(args.device)
-    model = GraspNet(args.architecture).to(device)
+    model = GraspNet(args.architecture)
+    if args.init:
+        saved = torch.load(os.path.join(args.init, "model.pt"), map_location="cpu")
+        if saved["architecture"] != args.architecture:
+            raise SystemExit(f"--init {args.init} is {saved['architecture']}, not {args.architecture}")
+        model.load_state_dict(saved["state_dict"])
+    model = model.to(device)
     optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
     config = {k: v for k, v in vars(args).items()}
     config.update(train_views=len(train_idx), eval_views_total=len(eval_idx), unseen_family_views=len(family_idx), torch=torch.__version__,

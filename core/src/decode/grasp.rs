@@ -35,6 +35,10 @@ pub struct DecodeConfig {
     pub insertion_m: f64,
     /// Smallest distance kept between a pad and the table (m).
     pub table_clearance_m: f64,
+    /// Added to the predicted opening (within the stroke): the hand arrives
+    /// this much wider and closes to contact. A network trained with MSE
+    /// under-predicts openings (measured in BENCHMARKS.md / sim README).
+    pub opening_margin_m: f64,
 }
 
 impl Default for DecodeConfig {
@@ -46,6 +50,7 @@ impl Default for DecodeConfig {
             surface_radius_m: 0.005,
             insertion_m: 0.015,
             table_clearance_m: 0.003,
+            opening_margin_m: 0.02,
         }
     }
 }
@@ -112,13 +117,14 @@ pub fn decode_view(
     for (u, v, q) in peaks {
         let i = v * l + u;
         let (c, s) = (cos2[i], sin2[i]);
-        let width_m = f64::from(width[i]) * f64::from(contract.width_scale_m);
-        if !(c.is_finite() && s.is_finite() && width_m.is_finite())
-            || width_m <= 0.0
-            || width_m > gripper.max_width_m
+        let predicted_m = f64::from(width[i]) * f64::from(contract.width_scale_m);
+        if !(c.is_finite() && s.is_finite() && predicted_m.is_finite())
+            || predicted_m <= 0.0
+            || predicted_m > gripper.max_width_m
         {
             continue;
         }
+        let width_m = (predicted_m + config.opening_margin_m).min(gripper.max_width_m);
         let phi = 0.5 * f64::from(s).atan2(f64::from(c));
         let Some(world_from_grasp) = grasp_at(placement, u, v, phi, width_m, gripper, table, config) else {
             continue;

@@ -71,6 +71,7 @@ fn known_peak_lands_at_known_pose_in_every_view() {
     };
     let config = DecodeConfig {
         smoothing_sigma_px: 0.0,
+        opening_margin_m: 0.0,
         ..DecodeConfig::default()
     };
     let (c, s) = (YAW.cos(), YAW.sin());
@@ -155,6 +156,32 @@ fn known_peak_lands_at_known_pose_in_every_view() {
                 );
                 assert!((g.width_m - 0.05).abs() < 1e-6);
                 assert_eq!((g.object_id, g.view, g.pixel), (7, axis, [u as u32, v as u32]));
+                // An opening margin widens the same grasp (closing horizontally,
+                // so the wider pads stay clear of the table), within the stroke.
+                if phi == 0.0 {
+                    for (margin, width) in [(0.02, 0.07), (0.5, Gripper::default().max_width_m)] {
+                        let wider = DecodeConfig {
+                            opening_margin_m: margin,
+                            ..config.clone()
+                        };
+                        let grasps = decode_view(
+                            &placement,
+                            &maps,
+                            0,
+                            &contract,
+                            &Gripper::default(),
+                            &table,
+                            0.5,
+                            &wider,
+                        );
+                        assert_eq!(grasps.len(), 1, "{axis:?} margin {margin}");
+                        assert!(
+                            (grasps[0].width_m - width).abs() < 1e-9,
+                            "{axis:?} margin {margin}"
+                        );
+                        assert_eq!(grasps[0].world_from_grasp, g.world_from_grasp);
+                    }
+                }
             }
         }
     }
@@ -183,6 +210,7 @@ fn grasps_into_the_table_are_dropped() {
     };
     let config = DecodeConfig {
         smoothing_sigma_px: 0.0,
+        opening_margin_m: 0.0,
         ..DecodeConfig::default()
     };
     let placement = ViewPlacement {
