@@ -170,6 +170,21 @@ fn families_of(names: &[String]) -> anyhow::Result<Vec<Family>> {
         .collect()
 }
 
+fn scenarios_of(names: &[String]) -> anyhow::Result<Vec<Scenario>> {
+    names
+        .iter()
+        .map(|s| Scenario::parse(s).with_context(|| format!("--scenarios: unknown scenario {s:?}")))
+        .collect()
+}
+
+/// `--threads`: rayon's worker count (default: one per core).
+fn use_threads(threads: Option<usize>) -> anyhow::Result<()> {
+    if let Some(n) = threads {
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
+    }
+    Ok(())
+}
+
 fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
         Command::Eval {
@@ -188,13 +203,8 @@ fn main() -> anyhow::Result<()> {
             server,
             opening_margin_mm,
         } => {
-            if let Some(n) = threads {
-                rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
-            }
-            let scenarios = scenarios
-                .iter()
-                .map(|s| Scenario::parse(s).with_context(|| format!("--scenarios: unknown scenario {s:?}")))
-                .collect::<anyhow::Result<Vec<_>>>()?;
+            use_threads(threads)?;
+            let scenarios = scenarios_of(&scenarios)?;
             let settings = settings
                 .iter()
                 .map(|s| Setting::parse(s))
@@ -265,13 +275,8 @@ fn main() -> anyhow::Result<()> {
             threads,
             data_version,
         } => {
-            if let Some(n) = threads {
-                rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
-            }
-            let scenarios = scenarios
-                .iter()
-                .map(|s| Scenario::parse(s).with_context(|| format!("--scenarios: unknown scenario {s:?}")))
-                .collect::<anyhow::Result<Vec<_>>>()?;
+            use_threads(threads)?;
+            let scenarios = scenarios_of(&scenarios)?;
             let contract = ModelContract {
                 input_size_px,
                 pixel_size_m: pixel_size_mm / 1000.0,

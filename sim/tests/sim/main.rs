@@ -543,29 +543,16 @@ mod eval {
             (Scenario::Isolated, 900_001),
             (Scenario::Packed, 900_000),
         ] {
-            let e = run_episode(
-                scenario,
-                seed,
-                &setting,
-                &mut InProcess {
+            let mut run = || {
+                let mut source = InProcess {
                     planner: &planner,
                     net: &mut net,
-                },
-                &config,
-            )
-            .unwrap();
+                };
+                run_episode(scenario, seed, &setting, &mut source, &config).unwrap()
+            };
+            let e = run();
             // Same seed, same episode: scenes, cameras and noise are fixed by the seed.
-            let again = run_episode(
-                scenario,
-                seed,
-                &setting,
-                &mut InProcess {
-                    planner: &planner,
-                    net: &mut net,
-                },
-                &config,
-            )
-            .unwrap();
+            let again = run();
             let outcomes = |e: &Episode| {
                 let tried: Vec<_> = e.attempts.iter().map(|a| (a.quality, a.failure)).collect();
                 (e.removed, e.end, tried)
