@@ -27,7 +27,7 @@ use std::time::Instant;
 use mvgrasp_client::request::{depth_request, pose_from_message};
 use mvgrasp_client::{PlannerClient, pb};
 use mvgrasp_core::rng::SplitMix64;
-use mvgrasp_core::{GraspNet, Gripper, PlanOptions, Planner, ViewPolicy, Workspace};
+use mvgrasp_core::{GraspNet, PlanOptions, Planner, ViewPolicy, Workspace};
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 
 use crate::camera::{Camera, Frame, NoiseModel, render};
@@ -377,11 +377,7 @@ impl GraspSource for Remote {
 /// The plan options of `setting` for episode `seed`.
 pub fn plan_options(setting: &Setting, seed: u64, gripper: &GripperModel) -> PlanOptions {
     PlanOptions {
-        gripper: Gripper {
-            max_width_m: f64::from(gripper.max_width_m),
-            finger_width_m: f64::from(gripper.pad_width_m),
-            finger_depth_m: f64::from(gripper.pad_depth_m),
-        },
+        gripper: gripper.planner_gripper(),
         max_grasps: 1,
         min_quality: setting.tau,
         view_policy: match setting.policy {

@@ -66,6 +66,15 @@ impl GripperModel {
             friction: 0.5,
         }
     }
+
+    /// The planner's view of this gripper: stroke, pad width and depth.
+    pub fn planner_gripper(&self) -> mvgrasp_core::Gripper {
+        mvgrasp_core::Gripper {
+            max_width_m: f64::from(self.max_width_m),
+            finger_width_m: f64::from(self.pad_width_m),
+            finger_depth_m: f64::from(self.pad_depth_m),
+        }
+    }
 }
 
 /// What a grasp comes to.

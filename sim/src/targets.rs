@@ -21,8 +21,7 @@ use mvgrasp_core::decode::{ViewPlacement, grasp_at};
 use mvgrasp_core::rng::SplitMix64;
 use mvgrasp_core::view::silhouette_extent_px;
 use mvgrasp_core::{
-    Channel, GraspMaps, GraspNet, Gripper, ModelContract, PlanOptions, Planner, ViewAxis, ViewBatch,
-    ViewPolicy,
+    Channel, GraspMaps, GraspNet, ModelContract, PlanOptions, Planner, ViewAxis, ViewBatch, ViewPolicy,
 };
 
 use nalgebra::Point3;
@@ -135,11 +134,7 @@ pub fn label_frame(
     let plan = planner
         .plan(&input, &options, &mut NoNet(contract.clone()))
         .map_err(|e| Error::Scene(format!("pipeline: {e}")))?;
-    let core_gripper = Gripper {
-        max_width_m: f64::from(gripper.max_width_m),
-        finger_width_m: f64::from(gripper.pad_width_m),
-        finger_depth_m: f64::from(gripper.pad_depth_m),
-    };
+    let core_gripper = gripper.planner_gripper();
     let decode = &planner.config().decode;
     let l = contract.input_size_px;
     let pixel_m = f64::from(contract.pixel_size_m);
