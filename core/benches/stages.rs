@@ -16,7 +16,8 @@ use mvgrasp_core::segment::{euclidean_clusters, fit_table};
 use mvgrasp_core::select::view_entropy;
 use mvgrasp_core::sensor::{BlockMask, random_world_points, world_points_above};
 use mvgrasp_core::{
-    GraspNet, MomentsNet, OrthoView, PlanOptions, Planner, PlannerConfig, SensorInput, ViewAxis, Workspace,
+    GraspNet, ModelContract, MomentsNet, OrthoView, PlanOptions, Planner, PlannerConfig, SensorInput,
+    ViewAxis, Workspace,
 };
 use nalgebra::{Point3, Vector3};
 
@@ -32,7 +33,14 @@ fn stages(c: &mut Criterion) {
         &bytes,
         Workspace::new([-0.6, -0.4, -0.05], [0.6, 0.4, 0.4]).expect("workspace"),
     );
-    let mut net = MomentsNet::default();
+    // The view size and pixel size of the shipped model (`models/mvgrasp.onnx`,
+    // `mvgrasp-1-72px`: 72 px of 3.33 mm); the analytic baseline speaks it.
+    let shipped = ModelContract {
+        input_size_px: 72,
+        pixel_size_m: 0.003_333_333,
+        ..ModelContract::baseline()
+    };
+    let mut net = MomentsNet::new(shipped);
     let contract = net.contract().clone();
     let planner = Planner::new(PlannerConfig::default(), contract.clone()).expect("planner");
     let config = planner.config().clone();
@@ -148,6 +156,17 @@ fn stages(c: &mut Criterion) {
         b.iter(|| {
             let p = planner.prepare(black_box(&input), &options).expect("prepare");
             planner.finish(p, &maps).expect("finish")
+        })
+    });
+    // The same end to end with the baseline's 96 px x 2.5 mm views, for comparison.
+    let mut net_96 = MomentsNet::default();
+    let planner_96 = Planner::new(PlannerConfig::default(), net_96.contract().clone()).expect("planner");
+    let prepared_96 = planner_96.prepare(&input, &options).expect("prepare");
+    let maps_96 = net_96.infer(prepared_96.batch()).expect("maps");
+    group.bench_function("all_but_network_96px_views", |b| {
+        b.iter(|| {
+            let p = planner_96.prepare(black_box(&input), &options).expect("prepare");
+            planner_96.finish(p, &maps_96).expect("finish")
         })
     });
     let map: Vec<f32> = (0..96 * 96).map(|i| (i % 97) as f32 / 97.0).collect();

@@ -103,9 +103,19 @@ fn connected_components(points: &[[f32; 3]], tolerance_m: f32) -> (Cells, Vec<u3
     let edge = tolerance_m / 3f32.sqrt() * 0.999;
     let cells = Cells::new(points, edge);
 
-    // Pairs of occupied cells close enough to hold a pair of points within
-    // the tolerance, each pair once.
-    let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(cells.len() * 16);
+    // Every pair of occupied cells close enough to hold a pair of points
+    // within the tolerance, each pair once, joined as soon as it is found:
+    // the union-find skips pairs already joined, the cells' point boxes
+    // settle most of the rest, and only the remainder compares points.
+    let mut sets = UnionFind::new(cells.len());
+    let mut consider = |a: usize, b: usize| {
+        if sets.find(a) != sets.find(b)
+            && cells.may_touch(a, b, radius_sq)
+            && cells.any_pair_within(points, a, b, radius_sq)
+        {
+            sets.union(a, b);
+        }
+    };
     match &cells.index {
         CellIndex::Dense { cell, dims, .. } => {
             // The grid is padded by 2 cells on every side, so a neighbour's
@@ -118,7 +128,7 @@ fn connected_components(points: &[[f32; 3]], tolerance_m: f32) -> (Cells, Vec<u3
                 for &delta in &deltas {
                     let b = cell[(slot as isize + delta) as usize];
                     if b != u32::MAX {
-                        pairs.push((a as u32, b));
+                        consider(a, b as usize);
                     }
                 }
             }
@@ -131,20 +141,10 @@ fn connected_components(points: &[[f32; 3]], tolerance_m: f32) -> (Cells, Vec<u3
                         continue;
                     }
                     if let Some(&b) = map.get(&c.map(|v| v as u32)) {
-                        pairs.push((a as u32, b));
+                        consider(a, b as usize);
                     }
                 }
             }
-        }
-    }
-    let mut sets = UnionFind::new(cells.len());
-    for (a, b) in pairs {
-        let (a, b) = (a as usize, b as usize);
-        if sets.find(a) != sets.find(b)
-            && cells.may_touch(a, b, radius_sq)
-            && cells.any_pair_within(points, a, b, radius_sq)
-        {
-            sets.union(a, b);
         }
     }
     // Dense component ids, in order of first appearance.
