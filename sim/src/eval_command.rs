@@ -236,7 +236,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         "model_version": contract.model_version,
         "summaries": summaries.iter().map(|s| serde_json::json!({
             "scenario": s.scenario.name(), "setting": s.setting, "episodes": s.episodes,
-            "objects": s.objects, "removed": s.removed, "attempts": s.attempts, "successes": s.successes,
+            "objects": s.objects, "removed": s.removed, "fell_off": s.fell_off, "attempts": s.attempts, "successes": s.successes,
             "success_rate": s.success_rate(), "removal_rate": s.removal_rate(),
             "failures": Failure::ALL.iter().zip(s.failures).map(|(f, n)| (f.name(), n)).collect::<std::collections::BTreeMap<_, _>>(),
             "ended_without_grasp": s.ended_without_grasp, "cleared": s.cleared,

@@ -16,9 +16,9 @@
 //!
 //! Grasp labels ([`grasp`]), training targets ([`targets`]) and the dataset
 //! writer ([`dataset`]) make the training data; a rapier3d gripper
-//! ([`physics`]) confirms grasps, and [`eval`] runs the clear-the-table
-//! benchmark with a planner in the loop. Still to come (issue 3): piles and
-//! mesh import.
+//! ([`physics`]) confirms grasps and settles piles ([`pile`]), and [`eval`]
+//! runs the clear-the-table benchmark with a planner in the loop. Still to
+//! come (issue 3): mesh import.
 
 pub mod camera;
 pub mod dataset;
@@ -28,6 +28,7 @@ pub mod files;
 pub mod grasp;
 pub mod objects;
 pub mod physics;
+pub mod pile;
 pub mod scene;
 pub mod targets;
 

@@ -96,7 +96,7 @@ enum Command {
         #[arg(long, env = "MVGRASP_ONNXRUNTIME")]
         onnxruntime: Option<PathBuf>,
         /// Scenarios (comma-separated).
-        #[arg(long, value_delimiter = ',', default_value = "isolated,packed,clutter")]
+        #[arg(long, value_delimiter = ',', default_value = "isolated,packed,pile,clutter")]
         scenarios: Vec<String>,
         /// Episodes per scenario (seeds seed, seed + 1, ...).
         #[arg(long, default_value_t = 10)]
@@ -139,7 +139,7 @@ enum Command {
     /// Render one scene: depth.png + camera.json (what `mvgrasp plan` reads),
     /// labels.png and preview.png.
     RenderSample {
-        /// isolated, packed or clutter.
+        /// isolated, packed, pile or clutter.
         #[arg(long, default_value = "packed")]
         scenario: String,
         /// Scene and camera seed.
@@ -315,7 +315,7 @@ fn main() -> anyhow::Result<()> {
             no_noise,
         } => {
             let scenario = Scenario::parse(&scenario)
-                .with_context(|| format!("--scenario {scenario:?}: isolated, packed or clutter"))?;
+                .with_context(|| format!("--scenario {scenario:?}: isolated, packed, pile or clutter"))?;
             let families = families_of(&families)?;
             let scene = Scene::generate(scenario, seed, &families)?;
             let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xCA3E);

@@ -172,6 +172,17 @@ impl ObjectModel {
         }
     }
 
+    /// The tight bounding box of the object at `pose`: the union of its
+    /// parts' boxes. (`shape.compute_aabb` turns the compound's local box,
+    /// which is loose under any rotation that is not a quarter turn.)
+    pub fn aabb_at(&self, pose: &Pose) -> Aabb {
+        self.parts
+            .iter()
+            .map(|(part_pose, part)| part.compute_aabb(&(*pose * *part_pose)))
+            .reduce(|a, b| Aabb::new(a.mins.min(b.mins), a.maxs.max(b.maxs)))
+            .unwrap_or_else(|| self.shape.compute_aabb(pose))
+    }
+
     /// A random object of `family`, with sizes drawn from `rng`. At least one
     /// way across every object is narrower than 12 cm (it fits a 2F-140).
     pub fn sample(family: Family, rng: &mut SplitMix64) -> Result<Self> {

@@ -17,7 +17,7 @@ use rapier3d::prelude::{
 };
 
 use crate::grasp::{GripperModel, pose_of};
-use crate::scene::Scene;
+use crate::scene::{PlacedObject, Scene};
 
 /// How a trial runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -88,6 +88,44 @@ impl TrialOutcome {
     }
 }
 
+/// A physics world holding `scene`: gravity, the fixed table and every
+/// object as a dynamic body at its pose and mass (their handles, in scene
+/// order). Stepped at `dt` with the stiff, non-recycled contacts above.
+pub(crate) fn scene_world(scene: &Scene, dt: f32, friction: f32) -> (PhysicsWorld, Vec<RigidBodyHandle>) {
+    let mut world = PhysicsWorld::new();
+    world.gravity = Vector::new(0.0, 0.0, -9.81);
+    let p = &mut world.integration_parameters;
+    p.dt = dt;
+    p.num_solver_iterations = 4;
+    p.length_unit = 0.1;
+    p.contact_recycling = false;
+    p.contact_softness.natural_frequency = 300.0;
+    p.contact_softness.damping_ratio = 10.0;
+
+    world.insert(
+        RigidBodyBuilder::fixed().translation(Vector::new(0.0, 0.0, scene.table_z - 0.05)),
+        ColliderBuilder::cuboid(scene.table_half[0], scene.table_half[1], 0.05).friction(friction),
+    );
+    let bodies = scene
+        .objects
+        .iter()
+        .map(|o| add_object(&mut world, o, friction))
+        .collect();
+    (world, bodies)
+}
+
+/// Adds `object` to `world` as a dynamic body at its pose and mass.
+pub(crate) fn add_object(world: &mut PhysicsWorld, object: &PlacedObject, friction: f32) -> RigidBodyHandle {
+    world
+        .insert(
+            RigidBodyBuilder::dynamic().pose(object.world_from_object),
+            ColliderBuilder::new(object.model.shape.clone())
+                .mass(object.model.mass_kg)
+                .friction(friction),
+        )
+        .0
+}
+
 struct Hand {
     palm: RigidBodyHandle,
     pads: [RigidBodyHandle; 2],
@@ -105,33 +143,8 @@ pub fn trial(
     gripper: &GripperModel,
     config: &TrialConfig,
 ) -> TrialOutcome {
-    let mut world = PhysicsWorld::new();
-    world.gravity = Vector::new(0.0, 0.0, -9.81);
-    let p = &mut world.integration_parameters;
-    p.dt = config.dt;
-    p.num_solver_iterations = 4;
-    p.length_unit = 0.1;
-    p.contact_recycling = false;
-    p.contact_softness.natural_frequency = 300.0;
-    p.contact_softness.damping_ratio = 10.0;
-
-    world.insert(
-        RigidBodyBuilder::fixed().translation(Vector::new(0.0, 0.0, scene.table_z - 0.05)),
-        ColliderBuilder::cuboid(scene.table_half[0], scene.table_half[1], 0.05).friction(config.friction),
-    );
-    let mut object = None;
-    for (i, o) in scene.objects.iter().enumerate() {
-        let (body, _) = world.insert(
-            RigidBodyBuilder::dynamic().pose(o.world_from_object),
-            ColliderBuilder::new(o.model.shape.clone())
-                .mass(o.model.mass_kg)
-                .friction(config.friction),
-        );
-        if i == target {
-            object = Some(body);
-        }
-    }
-    let Some(object) = object else {
+    let (mut world, bodies) = scene_world(scene, config.dt, config.friction);
+    let Some(&object) = bodies.get(target) else {
         return TrialOutcome::NoGrip;
     };
     let start_z = world.bodies[object].translation().z;

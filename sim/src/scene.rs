@@ -10,8 +10,10 @@ use parry3d::math::{Pose, Rotation, Vector};
 
 use crate::error::{Error, Result};
 use crate::objects::{Family, ObjectModel};
+use crate::pile::{DropBox, SettleConfig, drop_pile};
 
-/// The paper's evaluation scenarios (piles need physics and come with it).
+/// The paper's evaluation scenarios. The discriminants seed the scenes, so
+/// a new scenario goes at the end.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Scenario {
     /// One object, upright or toppled, anywhere near the table centre.
@@ -20,11 +22,19 @@ pub enum Scenario {
     Packed,
     /// 15-20 objects, upright or toppled, spread over the table.
     Clutter,
+    /// 4-6 objects dropped into a box, settled in rapier3d, the box lifted
+    /// away and settled again (`pile.rs`).
+    Pile,
 }
 
 impl Scenario {
     /// Every scenario.
-    pub const ALL: [Scenario; 3] = [Scenario::Isolated, Scenario::Packed, Scenario::Clutter];
+    pub const ALL: [Scenario; 4] = [
+        Scenario::Isolated,
+        Scenario::Packed,
+        Scenario::Pile,
+        Scenario::Clutter,
+    ];
 
     /// Lower-case name.
     pub fn name(self) -> &'static str {
@@ -32,6 +42,7 @@ impl Scenario {
             Self::Isolated => "isolated",
             Self::Packed => "packed",
             Self::Clutter => "clutter",
+            Self::Pile => "pile",
         }
     }
 
@@ -66,6 +77,9 @@ pub struct Scene {
     /// The seed that made it.
     pub seed: u64,
 }
+
+/// Half sizes of every scene's table top along x and y (m).
+const TABLE_HALF: [f32; 2] = [0.6, 0.5];
 
 /// Smallest gap between two objects' footprints in clutter (m): wider than
 /// the planner's clustering tolerance (1 cm).
@@ -163,6 +177,22 @@ impl Scene {
             Scenario::Isolated => (1, 0.10, false),
             Scenario::Packed => (4 + rng.below(3), 0.0, true),
             Scenario::Clutter => (15 + rng.below(6), 0.0, false),
+            Scenario::Pile => {
+                let count = 4 + rng.below(3);
+                let models = (0..count)
+                    .map(|_| ObjectModel::sample(families[rng.below(families.len())], &mut rng))
+                    .collect::<Result<Vec<_>>>()?;
+                let mut scene = Self {
+                    table_z,
+                    table_half: TABLE_HALF,
+                    objects: Vec::new(),
+                    scenario,
+                    seed,
+                };
+                let settle = SettleConfig::default();
+                drop_pile(&mut scene, models, &DropBox::default(), &settle, &mut rng);
+                return Ok(scene);
+            }
         };
         let mut attempts = 0;
         let mut current: Option<ObjectModel> = None;
@@ -184,7 +214,9 @@ impl Scene {
             let yaw = rng.uniform(0.0, std::f64::consts::TAU) as f32;
             let toppled = (!upright_only && rng.next_f64() < 0.4).then(|| rng.below(4) as u8);
             let (x, y) = match scenario {
-                Scenario::Isolated => (rng.uniform(-spread, spread), rng.uniform(-spread, spread)),
+                Scenario::Isolated | Scenario::Pile => {
+                    (rng.uniform(-spread, spread), rng.uniform(-spread, spread))
+                }
                 Scenario::Clutter => (rng.uniform(-0.4, 0.4), rng.uniform(-0.32, 0.32)),
                 Scenario::Packed if objects.is_empty() => {
                     (rng.uniform(-0.05, 0.05), rng.uniform(-0.05, 0.05))
@@ -216,7 +248,7 @@ impl Scene {
         }
         Ok(Self {
             table_z,
-            table_half: [0.6, 0.5],
+            table_half: TABLE_HALF,
             objects,
             scenario,
             seed,
@@ -230,7 +262,8 @@ mod tests {
 
     #[test]
     fn scenes_rest_on_the_table_without_overlap() {
-        for scenario in Scenario::ALL {
+        // Piles are checked in pile.rs: their objects rest on each other.
+        for scenario in [Scenario::Isolated, Scenario::Packed, Scenario::Clutter] {
             for seed in 0..6 {
                 let scene = Scene::generate(scenario, seed, &Family::ALL).unwrap();
                 let n = scene.objects.len();
@@ -238,6 +271,7 @@ mod tests {
                     Scenario::Isolated => assert_eq!(n, 1),
                     Scenario::Packed => assert!((4..=6).contains(&n)),
                     Scenario::Clutter => assert!((15..=20).contains(&n)),
+                    Scenario::Pile => unreachable!(),
                 }
                 for (i, o) in scene.objects.iter().enumerate() {
                     assert!(

@@ -542,6 +542,7 @@ mod eval {
             (Scenario::Isolated, 900_000),
             (Scenario::Isolated, 900_001),
             (Scenario::Packed, 900_000),
+            (Scenario::Pile, 900_000),
         ] {
             let mut run = || {
                 let mut source = InProcess {
@@ -555,11 +556,11 @@ mod eval {
             let again = run();
             let outcomes = |e: &Episode| {
                 let tried: Vec<_> = e.attempts.iter().map(|a| (a.quality, a.failure)).collect();
-                (e.removed, e.end, tried)
+                (e.removed, e.fell_off, e.end, tried)
             };
             assert_eq!(outcomes(&e), outcomes(&again));
             assert_eq!(e.removed, e.successes());
-            assert!(e.removed <= e.objects);
+            assert!(e.removed + e.fell_off <= e.objects);
             assert!(e.attempts.len() <= 2 * e.objects + 3);
             let tail = e
                 .attempts
@@ -568,7 +569,7 @@ mod eval {
                 .take_while(|a| a.failure.is_some())
                 .count();
             match e.end {
-                End::Cleared => assert_eq!(e.removed, e.objects),
+                End::Cleared => assert_eq!(e.removed + e.fell_off, e.objects),
                 End::ConsecutiveFailures => assert_eq!(tail, 3),
                 End::NoGraspAboveTau => assert!(e.last_plan_ms.is_some()),
                 End::AttemptLimit => assert_eq!(e.attempts.len(), 2 * e.objects + 3),
@@ -594,6 +595,7 @@ mod eval {
                 seed: 1,
                 objects: 4,
                 removed: 3,
+                fell_off: 0,
                 attempts: vec![
                     attempt(None),
                     attempt(Some(Failure::SlipDuringLift)),
@@ -608,6 +610,7 @@ mod eval {
                 seed: 2,
                 objects: 5,
                 removed: 0,
+                fell_off: 1,
                 attempts: vec![
                     Attempt {
                         plan_ms: 30.0,
@@ -626,6 +629,7 @@ mod eval {
             &episodes,
         );
         assert_eq!((s.attempts, s.successes, s.removed, s.objects), (7, 3, 3, 9));
+        assert_eq!(s.fell_off, 1);
         assert!((s.success_rate() - 3.0 / 7.0).abs() < 1e-12);
         assert!((s.removal_rate() - 3.0 / 9.0).abs() < 1e-12);
         assert_eq!(s.failures, [3, 1, 0, 0]);
