@@ -28,7 +28,7 @@ use rayon::prelude::*;
 use crate::camera::{Camera, NoiseModel, render};
 use crate::error::{Error, Result};
 use crate::grasp::GripperModel;
-use crate::objects::Family;
+use crate::objects::Catalog;
 use crate::scene::{Scenario, Scene};
 use crate::targets::{LabelledView, TargetConfig, label_frame};
 
@@ -44,8 +44,8 @@ pub struct DatagenConfig {
     pub seed: u64,
     /// Scenarios, drawn in turn.
     pub scenarios: Vec<Scenario>,
-    /// Shape families objects are drawn from.
-    pub families: Vec<Family>,
+    /// What objects are drawn from (families and meshes).
+    pub catalog: Catalog,
     /// Scenes per shard.
     pub scenes_per_shard: u64,
     /// Candidate and painting settings.
@@ -144,7 +144,7 @@ fn scene_views(
     planner: &Planner,
     gripper: &GripperModel,
 ) -> Result<Vec<LabelledView>> {
-    let scene = Scene::generate(scenario, seed, &config.families)?;
+    let scene = Scene::generate_from(scenario, seed, &config.catalog)?;
     let mut rng = SplitMix64::new(seed.wrapping_mul(0xD1B5_4A32_D192_ED03) ^ 0xDA7A);
     let top_down = rng.next_f64() < 0.15;
     let camera = Camera::random(
@@ -163,7 +163,7 @@ pub fn generate(
     config: &DatagenConfig,
     progress: bool,
 ) -> Result<DatagenReport> {
-    if config.scenarios.is_empty() || config.families.is_empty() || config.scenes_per_shard == 0 {
+    if config.scenarios.is_empty() || config.catalog.is_empty() || config.scenes_per_shard == 0 {
         return Err(Error::Invalid {
             field: "datagen",
             reason: "scenarios, families and scenes per shard must not be empty / zero".into(),
@@ -259,7 +259,7 @@ fn write_manifest(
         "generator": {
             "scenes": config.scenes, "first_seed": config.seed,
             "scenarios": config.scenarios.iter().map(|s| s.name()).collect::<Vec<_>>(),
-            "families": config.families.iter().map(|f| f.name()).collect::<Vec<_>>(),
+            "families": config.catalog.names(),
             "noise": config.noise.is_some(), "stride_px": config.targets.stride_px,
             "angles": config.targets.angles, "anneal_steps": config.targets.anneal_steps,
         },

@@ -34,7 +34,7 @@ use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use crate::camera::{Camera, Frame, NoiseModel, render};
 use crate::error::{Error, Result};
 use crate::grasp::{GraspLabel, GripperModel, label_grasp};
-use crate::objects::Family;
+use crate::objects::{Catalog, Family};
 use crate::physics::{TrialConfig, TrialOutcome, trial};
 use crate::pile::{SettleConfig, settle};
 use crate::scene::{Scenario, Scene};
@@ -209,8 +209,8 @@ pub struct EpisodeConfig {
     pub trial: TrialConfig,
     /// Sensor noise; `None`: a perfect sensor.
     pub noise: Option<NoiseModel>,
-    /// Shape families scenes are drawn from.
-    pub families: Vec<Family>,
+    /// What scenes draw their objects from.
+    pub catalog: Catalog,
 }
 
 impl Default for EpisodeConfig {
@@ -219,14 +219,14 @@ impl Default for EpisodeConfig {
             gripper: GripperModel::robotiq_2f_140(),
             trial: TrialConfig::default(),
             noise: Some(NoiseModel::default()),
-            families: Family::ALL.to_vec(),
+            catalog: Catalog::of(&Family::ALL),
         }
     }
 }
 
 /// The scene and camera of episode `seed` (the same for every setting).
-pub fn episode_scene(scenario: Scenario, seed: u64, families: &[Family]) -> Result<(Scene, Camera)> {
-    let scene = Scene::generate(scenario, seed, families)?;
+pub fn episode_scene(scenario: Scenario, seed: u64, catalog: &Catalog) -> Result<(Scene, Camera)> {
+    let scene = Scene::generate_from(scenario, seed, catalog)?;
     let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xE7A1);
     let camera = Camera::random(&mut rng, Vector3::new(0.0, 0.0, f64::from(scene.table_z)), false);
     Ok((scene, camera))
@@ -400,7 +400,7 @@ pub fn run_episode(
     source: &mut dyn GraspSource,
     config: &EpisodeConfig,
 ) -> Result<Episode> {
-    let (mut scene, camera) = episode_scene(scenario, seed, &config.families)?;
+    let (mut scene, camera) = episode_scene(scenario, seed, &config.catalog)?;
     let options = plan_options(setting, seed, &config.gripper);
     let mut noise_rng = SplitMix64::new(seed ^ 0x0153_EAB0);
     let mut episode = Episode {

@@ -182,7 +182,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
             .collect();
         first.sort_by_key(|e| e.seed);
         for e in first.into_iter().take(*snapshots) {
-            let (scene, camera) = episode_scene(scenario, e.seed, &config.families)?;
+            let (scene, camera) = episode_scene(scenario, e.seed, &config.catalog)?;
             let frame = render(&scene, &camera, None);
             let drawn: Vec<DrawnGrasp> = e
                 .attempts
@@ -198,12 +198,15 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
     }
     let command: Vec<String> = std::env::args().collect();
     let table = markdown_table(&summaries);
+    let objects_line = format!(" Objects drawn from: {}.", config.catalog.names().join(", "));
     let report = format!(
         "# Clear-the-table in simulation\n\n- revision: `{}`\n- model: `{}` ({}, data {}), {} px views of {} mm\n- command: `{}`\n- seeds {}..{} per scenario, the same scenes and cameras for every setting; {:.0} s on {} threads\n\n{table}\n\
          Success = successful attempts / attempts; removal = objects removed / objects at the start. \
          Not simulated: the carry to the basket and the release (a held object counts as removed), and \
-         the disturbance a failed grasp causes (the scene stays as it was). The paper's pile scenario \
-         is not built yet (sim has no piles); `clutter` is 15-20 objects spread over the table.\n{}",
+         the disturbance a failed grasp causes (the scene stays as it was). `pile`: 4-6 objects dropped \
+         into a box, settled in rapier3d, the box lifted away; after every removal the rest settle \
+         again (objects that fall off the table count as not removed). `clutter` is 15-20 objects \
+         spread over the table.{}\n{}",
         git_revision(),
         model_name,
         contract.model_version,
@@ -215,6 +218,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         seeds.end,
         started.elapsed().as_secs_f64(),
         rayon::current_num_threads(),
+        objects_line,
         if snapshot_files.is_empty() {
             String::new()
         } else {

@@ -17,8 +17,9 @@
 //! Grasp labels ([`grasp`]), training targets ([`targets`]) and the dataset
 //! writer ([`dataset`]) make the training data; a rapier3d gripper
 //! ([`physics`]) confirms grasps and settles piles ([`pile`]), and [`eval`]
-//! runs the clear-the-table benchmark with a planner in the loop. Still to
-//! come (issue 3): mesh import.
+//! runs the clear-the-table benchmark with a planner in the loop. User
+//! meshes (OBJ, STL) join scenes through [`mesh`] and
+//! [`objects::Catalog`].
 
 pub mod camera;
 pub mod dataset;
@@ -26,6 +27,7 @@ mod error;
 pub mod eval;
 pub mod files;
 pub mod grasp;
+pub mod mesh;
 pub mod objects;
 pub mod physics;
 pub mod pile;

@@ -12,7 +12,8 @@ use mvgrasp_sim::{
     camera::{Camera, NoiseModel, render},
     dataset::{DatagenConfig, generate},
     files::write_frame,
-    objects::Family,
+    mesh::load_meshes,
+    objects::{Catalog, Family},
     scene::{Scenario, Scene},
     targets::TargetConfig,
 };
@@ -59,9 +60,8 @@ enum Command {
         /// Scenarios drawn in turn (comma-separated).
         #[arg(long, value_delimiter = ',', default_value = "isolated,packed")]
         scenarios: Vec<String>,
-        /// Shape families (comma-separated; default all).
-        #[arg(long, value_delimiter = ',')]
-        families: Vec<String>,
+        #[command(flatten)]
+        objects: Objects,
         /// View side in pixels.
         #[arg(long, default_value_t = 96)]
         input_size_px: usize,
@@ -111,9 +111,8 @@ enum Command {
             default_value = "entropy:0.8,all:0.8,top-down:0.8,random:0.8,entropy:0.9"
         )]
         settings: Vec<String>,
-        /// Shape families (comma-separated; default all).
-        #[arg(long, value_delimiter = ',')]
-        families: Vec<String>,
+        #[command(flatten)]
+        objects: Objects,
         /// Output folder.
         #[arg(long, default_value = "results")]
         out: PathBuf,
@@ -148,9 +147,8 @@ enum Command {
         /// Output folder.
         #[arg(long)]
         out: PathBuf,
-        /// Shape families to draw from (comma-separated; default all).
-        #[arg(long, value_delimiter = ',')]
-        families: Vec<String>,
+        #[command(flatten)]
+        objects: Objects,
         /// Look straight down instead of from 30-60 degrees elevation.
         #[arg(long)]
         top_down: bool,
@@ -158,6 +156,34 @@ enum Command {
         #[arg(long)]
         no_noise: bool,
     },
+}
+
+/// What scenes draw objects from: `--families`, `--meshes`, `--mesh-scale`.
+#[derive(Debug, clap::Args)]
+struct Objects {
+    /// Shape families (comma-separated; default: all, or none when
+    /// `--meshes` is given; give both to mix).
+    #[arg(long, value_delimiter = ',')]
+    families: Vec<String>,
+    /// OBJ or STL files to add as objects (comma-separated; z up, metres
+    /// unless `--mesh-scale`); decomposed into convex parts (`mesh.rs`).
+    #[arg(long, value_delimiter = ',')]
+    meshes: Vec<PathBuf>,
+    /// Factor from mesh file units to metres (0.001 for millimetres).
+    #[arg(long, default_value_t = 1.0)]
+    mesh_scale: f32,
+}
+
+impl Objects {
+    fn catalog(&self) -> anyhow::Result<Catalog> {
+        let families = if self.families.is_empty() && !self.meshes.is_empty() {
+            Vec::new()
+        } else {
+            families_of(&self.families)?
+        };
+        let meshes = load_meshes(&self.meshes, self.mesh_scale).context("--meshes")?;
+        Ok(Catalog { families, meshes })
+    }
 }
 
 fn families_of(names: &[String]) -> anyhow::Result<Vec<Family>> {
@@ -195,7 +221,7 @@ fn main() -> anyhow::Result<()> {
             episodes,
             seed,
             settings,
-            families,
+            objects,
             out,
             min_success,
             threads,
@@ -216,7 +242,7 @@ fn main() -> anyhow::Result<()> {
                 ..ModelSettings::default()
             };
             let config = EpisodeConfig {
-                families: families_of(&families)?,
+                catalog: objects.catalog()?,
                 ..EpisodeConfig::default()
             };
             let planning = match server {
@@ -267,7 +293,7 @@ fn main() -> anyhow::Result<()> {
             seed,
             out,
             scenarios,
-            families,
+            objects,
             input_size_px,
             pixel_size_mm,
             scenes_per_shard,
@@ -287,7 +313,7 @@ fn main() -> anyhow::Result<()> {
                 scenes,
                 seed,
                 scenarios,
-                families: families_of(&families)?,
+                catalog: objects.catalog()?,
                 scenes_per_shard,
                 targets: TargetConfig::default(),
                 noise: (!no_noise).then(NoiseModel::default),
@@ -310,14 +336,13 @@ fn main() -> anyhow::Result<()> {
             scenario,
             seed,
             out,
-            families,
+            objects,
             top_down,
             no_noise,
         } => {
             let scenario = Scenario::parse(&scenario)
                 .with_context(|| format!("--scenario {scenario:?}: isolated, packed, pile or clutter"))?;
-            let families = families_of(&families)?;
-            let scene = Scene::generate(scenario, seed, &families)?;
+            let scene = Scene::generate_from(scenario, seed, &objects.catalog()?)?;
             let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xCA3E);
             let target = Vector3::new(0.0, 0.0, f64::from(scene.table_z));
             let camera = Camera::random(&mut rng, target, top_down);
@@ -331,7 +356,7 @@ fn main() -> anyhow::Result<()> {
                 scene
                     .objects
                     .iter()
-                    .map(|o| o.model.family.name())
+                    .map(|o| o.model.name.as_str())
                     .collect::<Vec<_>>()
                     .join(", "),
                 scene.table_z,

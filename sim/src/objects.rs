@@ -36,6 +36,9 @@ pub enum Family {
     LShape,
     /// Two boxes in a T.
     TShape,
+    /// A user mesh (`mesh.rs`): not procedural, so not in [`Family::ALL`];
+    /// scenes get meshes from a [`Catalog`].
+    Mesh,
 }
 
 impl Family {
@@ -64,6 +67,7 @@ impl Family {
             Self::Bowl => "bowl",
             Self::LShape => "l_shape",
             Self::TShape => "t_shape",
+            Self::Mesh => "mesh",
         }
     }
 
@@ -78,6 +82,8 @@ impl Family {
 pub struct ObjectModel {
     /// The family.
     pub family: Family,
+    /// The family's name, or a mesh's file stem.
+    pub name: String,
     /// Convex parts in the object's frame.
     pub parts: Vec<(Pose, SharedShape)>,
     /// The parts as one compound shape.
@@ -91,7 +97,7 @@ pub struct ObjectModel {
 impl std::fmt::Debug for ObjectModel {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ObjectModel")
-            .field("family", &self.family)
+            .field("name", &self.name)
             .field("parts", &self.parts.len())
             .field("aabb", &self.aabb)
             .field("mass_kg", &self.mass_kg)
@@ -165,6 +171,7 @@ impl ObjectModel {
         let volume: f32 = parts.iter().map(|(_, s)| s.mass_properties(1.0).mass()).sum();
         Self {
             family,
+            name: family.name().to_owned(),
             parts,
             shape,
             aabb,
@@ -188,6 +195,11 @@ impl ObjectModel {
     pub fn sample(family: Family, rng: &mut SplitMix64) -> Result<Self> {
         let mut u = |lo: f64, hi: f64| rng.uniform(lo, hi) as f32;
         let parts = match family {
+            Family::Mesh => {
+                return Err(Error::Shape(
+                    "mesh objects are loaded from files (mesh.rs), not sampled".into(),
+                ));
+            }
             Family::Box => {
                 let (a, b, h) = (u(0.03, 0.10), u(0.04, 0.20), u(0.04, 0.20));
                 vec![cuboid_at(v(0.0, 0.0, h / 2.0), v(a / 2.0, b / 2.0, h / 2.0))]
@@ -293,6 +305,56 @@ impl ObjectModel {
         let x = lo.x.abs().max(hi.x.abs());
         let y = lo.y.abs().max(hi.y.abs());
         (x * x + y * y).sqrt()
+    }
+}
+
+/// Where scenes draw their objects from: procedural families (a new
+/// instance each draw) and loaded meshes (as they are).
+#[derive(Debug, Clone, Default)]
+pub struct Catalog {
+    /// Procedural families.
+    pub families: Vec<Family>,
+    /// Mesh objects ([`crate::mesh::load_meshes`]).
+    pub meshes: Vec<ObjectModel>,
+}
+
+impl Catalog {
+    /// Procedural families only.
+    pub fn of(families: &[Family]) -> Self {
+        Self {
+            families: families.to_vec(),
+            meshes: Vec::new(),
+        }
+    }
+
+    /// Nothing to draw from.
+    pub fn is_empty(&self) -> bool {
+        self.families.is_empty() && self.meshes.is_empty()
+    }
+
+    /// One object, every family and every mesh equally likely. With no
+    /// meshes this draws exactly what `ObjectModel::sample` of a uniformly
+    /// drawn family does, so family-only scenes do not change.
+    pub fn draw(&self, rng: &mut SplitMix64) -> Result<ObjectModel> {
+        if self.is_empty() {
+            return Err(Error::Invalid {
+                field: "families",
+                reason: "no shape family and no mesh to draw objects from".into(),
+            });
+        }
+        let k = rng.below(self.families.len() + self.meshes.len());
+        match self.families.get(k) {
+            Some(&family) => ObjectModel::sample(family, rng),
+            None => Ok(self.meshes[k - self.families.len()].clone()),
+        }
+    }
+
+    /// Names of the families and meshes, for manifests and reports.
+    pub fn names(&self) -> Vec<String> {
+        let families = self.families.iter().map(|f| f.name().to_owned());
+        families
+            .chain(self.meshes.iter().map(|m| format!("mesh:{}", m.name)))
+            .collect()
     }
 }
 

@@ -9,7 +9,7 @@ use parry3d::bounding_volume::Aabb;
 use parry3d::math::{Pose, Rotation, Vector};
 
 use crate::error::{Error, Result};
-use crate::objects::{Family, ObjectModel};
+use crate::objects::{Catalog, Family, ObjectModel};
 use crate::pile::{DropBox, SettleConfig, drop_pile};
 
 /// The paper's evaluation scenarios. The discriminants seed the scenes, so
@@ -164,10 +164,15 @@ impl Scene {
 
     /// The scene of `scenario` for `seed`, drawing objects from `families`.
     pub fn generate(scenario: Scenario, seed: u64, families: &[Family]) -> Result<Self> {
-        if families.is_empty() {
+        Self::generate_from(scenario, seed, &Catalog::of(families))
+    }
+
+    /// The scene of `scenario` for `seed`, drawing objects from `catalog`.
+    pub fn generate_from(scenario: Scenario, seed: u64, catalog: &Catalog) -> Result<Self> {
+        if catalog.is_empty() {
             return Err(Error::Invalid {
                 field: "families",
-                reason: "at least one shape family is needed".into(),
+                reason: "at least one shape family or mesh is needed".into(),
             });
         }
         let mut rng = SplitMix64::new(seed ^ 0x5CE4_E5B9_0000_0000 ^ scenario as u64);
@@ -180,7 +185,7 @@ impl Scene {
             Scenario::Pile => {
                 let count = 4 + rng.below(3);
                 let models = (0..count)
-                    .map(|_| ObjectModel::sample(families[rng.below(families.len())], &mut rng))
+                    .map(|_| catalog.draw(&mut rng))
                     .collect::<Result<Vec<_>>>()?;
                 let mut scene = Self {
                     table_z,
@@ -207,8 +212,7 @@ impl Scene {
             }
             // A new object every 50 failed tries, so a crowded table gets the ones that fit.
             if attempts % 50 == 1 || current.is_none() {
-                let family = families[rng.below(families.len())];
-                current = Some(ObjectModel::sample(family, &mut rng)?);
+                current = Some(catalog.draw(&mut rng)?);
             }
             let Some(model) = current.clone() else { continue };
             let yaw = rng.uniform(0.0, std::f64::consts::TAU) as f32;
