@@ -12,16 +12,20 @@
 //!    and 2.5, 5, 7.5 and 10 cm back along the approach, pre-shaped to the
 //!    planned width plus 2 cm (analytic, [`crate::grasp::label_grasp`]);
 //!    any hit: *collision on approach*;
-//! 3. the rapier3d trial ([`crate::physics::trial`]) closes, lifts 15 cm and
-//!    shakes. Held: a success, and the object leaves the scene (in a pile,
-//!    the rest then settle in physics: what leaned on it falls). The pads
-//!    never got a grip: *width too small* when the object is wider than the
-//!    stroke where the pads are, else *object missed*. Lost on the way up:
-//!    *slip during lift*.
+//! 3. the rapier3d trial ([`crate::physics::run_trial`]) closes, lifts
+//!    15 cm, shakes, carries the object over the obstacles to a basket
+//!    beside the table and lets go. In the basket: a success, and the
+//!    object leaves the scene. The pads never got a grip: *width too small*
+//!    when the object is wider than the stroke where the pads are, else
+//!    *object missed*. Lost on the way up, during the carry, or landed
+//!    outside the basket: *slip during lift*.
 //!
-//! Not simulated (said in every report): the carry to the basket and the
-//! release (a held object counts as removed), and the disturbance a failed
-//! grasp causes (the scene stays as it was).
+//! After every physics trial the scene is what the trial left: pushed
+//! neighbours stay pushed and a dropped object lies where it fell; then
+//! everything settles ([`crate::pile::settle`]: what leaned on the taken
+//! object falls), and objects that left the table are gone (counted as
+//! `fell_off`, not removed). An attempt stopped by the approach check
+//! leaves the scene as it was (a real arm's planner would not move there).
 
 use std::time::Instant;
 
@@ -30,12 +34,13 @@ use mvgrasp_client::{PlannerClient, pb};
 use mvgrasp_core::rng::SplitMix64;
 use mvgrasp_core::{GraspNet, PlanOptions, Planner, ViewPolicy, Workspace};
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
+use parry3d::math::Pose;
 
 use crate::camera::{Camera, Frame, NoiseModel, render};
 use crate::error::{Error, Result};
 use crate::grasp::{GraspLabel, GripperModel, label_grasp};
 use crate::objects::{Catalog, Family};
-use crate::physics::{TrialConfig, TrialOutcome, trial};
+use crate::physics::{Basket, TrialConfig, TrialOutcome, run_trial};
 use crate::pile::{SettleConfig, settle};
 use crate::scene::{Scenario, Scene};
 
@@ -217,7 +222,10 @@ impl Default for EpisodeConfig {
     fn default() -> Self {
         Self {
             gripper: GripperModel::robotiq_2f_140(),
-            trial: TrialConfig::default(),
+            trial: TrialConfig {
+                carry: Some(Basket::default()),
+                ..TrialConfig::default()
+            },
             noise: Some(NoiseModel::default()),
             catalog: Catalog::of(&Family::ALL),
         }
@@ -449,14 +457,21 @@ pub fn run_episode(
         let failure = match scene.object_at(&grasp.object_centroid, 0.01) {
             None => Some(Failure::ObjectMissed),
             Some(target) => {
-                let failure = try_grasp(&scene, target, &grasp, config);
-                if failure.is_none() {
-                    scene.objects.remove(target);
-                    episode.removed += 1;
-                    // What leaned on it falls; placed scenes have nothing leaning.
-                    if scenario == Scenario::Pile {
-                        episode.fell_off += settle(&mut scene, &SettleConfig::default());
+                let (failure, poses) = try_grasp(&scene, target, &grasp, config);
+                // The scene as the trial left it (a pushed neighbour stays
+                // pushed, a dropped object lies where it fell), the target
+                // gone if it reached the basket; then what still moves or
+                // leaned on the target comes to rest. Off the table is gone.
+                if let Some(poses) = poses {
+                    for (o, pose) in scene.objects.iter_mut().zip(poses) {
+                        o.world_from_object = pose;
+                        o.world_aabb = o.model.aabb_at(&pose);
                     }
+                    if failure.is_none() {
+                        scene.objects.remove(target);
+                        episode.removed += 1;
+                    }
+                    episode.fell_off += settle(&mut scene, &SettleConfig::default());
                 }
                 failure
             }
@@ -472,8 +487,15 @@ pub fn run_episode(
     Ok(episode)
 }
 
-/// The approach check, then the physics trial, of `grasp` on object `target`.
-fn try_grasp(scene: &Scene, target: usize, grasp: &PlannedGrasp, config: &EpisodeConfig) -> Option<Failure> {
+/// The approach check, then the physics trial, of `grasp` on object
+/// `target`: the failure, if any, and where the trial left every object
+/// (`None` when the approach check stopped it before any physics).
+fn try_grasp(
+    scene: &Scene,
+    target: usize,
+    grasp: &PlannedGrasp,
+    config: &EpisodeConfig,
+) -> (Option<Failure>, Option<Vec<Pose>>) {
     let pose = grasp.world_from_grasp;
     let approach = pose.rotation * Vector3::z();
     let mut final_label = None;
@@ -489,27 +511,29 @@ fn try_grasp(scene: &Scene, target: usize, grasp: &PlannedGrasp, config: &Episod
         if let GraspLabel::Collision { what } = &label
             && (back > 0.0 || !what.contains("closing"))
         {
-            return Some(Failure::CollisionOnApproach);
+            return (Some(Failure::CollisionOnApproach), None);
         }
         if back == 0.0 {
             final_label = Some(label);
         }
     }
-    match trial(
+    let trial = run_trial(
         scene,
         target,
         &pose,
         grasp.width_m,
         &config.gripper,
         &config.trial,
-    ) {
+    );
+    let failure = match trial.outcome {
         TrialOutcome::Held { .. } => None,
         TrialOutcome::Dropped { .. } => Some(Failure::SlipDuringLift),
         TrialOutcome::NoGrip => match final_label {
             Some(GraspLabel::TooWide) => Some(Failure::WidthTooSmall),
             _ => Some(Failure::ObjectMissed),
         },
-    }
+    };
+    (failure, Some(trial.poses))
 }
 
 /// Episodes of one scenario under one setting, summed.

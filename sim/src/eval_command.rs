@@ -202,10 +202,10 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
     let report = format!(
         "# Clear-the-table in simulation\n\n- revision: `{}`\n- model: `{}` ({}, data {}), {} px views of {} mm\n- command: `{}`\n- seeds {}..{} per scenario, the same scenes and cameras for every setting; {:.0} s on {} threads\n\n{table}\n\
          Success = successful attempts / attempts; removal = objects removed / objects at the start. \
-         Not simulated: the carry to the basket and the release (a held object counts as removed), and \
-         the disturbance a failed grasp causes (the scene stays as it was). `pile`: 4-6 objects dropped \
-         into a box, settled in rapier3d, the box lifted away; after every removal the rest settle \
-         again (objects that fall off the table count as not removed). `clutter` is 15-20 objects \
+         A success is an object carried to the basket beside the table and let go into it; after every \
+         physics trial the scene keeps what the trial did to it (pushed neighbours, dropped objects) and \
+         settles; objects knocked off the table are not removed. `pile`: 4-6 objects dropped \
+         into a box, settled in rapier3d, the box lifted away. `clutter` is 15-20 objects \
          spread over the table.{}\n{}",
         git_revision(),
         model_name,

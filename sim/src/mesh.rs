@@ -220,6 +220,13 @@ pub fn object_from_mesh(mesh: &Mesh, scale: f32, name: &str) -> Result<ObjectMod
     if let Some(t) = mesh.triangles.iter().find(|t| t.iter().any(|&i| i >= count)) {
         return Err(fail(format!("triangle {t:?} indexes past the {count} vertices")));
     }
+    let (open, shared) = edge_defects(&mesh.triangles);
+    if open + shared > 0 {
+        return Err(fail(format!(
+            "not a closed surface: {open} edges border one triangle, {shared} border more than two \
+             (a solid's every edge borders exactly two)"
+        )));
+    }
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
     for p in &mesh.vertices {
@@ -275,6 +282,21 @@ pub fn object_from_mesh(mesh: &Mesh, scale: f32, name: &str) -> Result<ObjectMod
     let mut model = ObjectModel::from_parts(Family::Mesh, parts);
     model.name = name.to_owned();
     Ok(model)
+}
+
+/// Edges (undirected) that border one triangle, and edges that border more
+/// than two: both zero for a closed 2-manifold surface.
+fn edge_defects(triangles: &[[u32; 3]]) -> (usize, usize) {
+    let mut count: HashMap<(u32, u32), u32> = HashMap::new();
+    for t in triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *count.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let open = count.values().filter(|&&n| n == 1).count();
+    let shared = count.values().filter(|&&n| n > 2).count();
+    (open, shared)
 }
 
 /// Reads and decomposes every file of `paths` (see [`read_mesh`] and
@@ -484,11 +506,29 @@ mod tests {
             let err = object_from_mesh(&boxy, scale, "boxy").unwrap_err().to_string();
             assert!(err.contains(why) && err.contains("boxy"), "scale {scale}: {err}");
         }
-        let flat = Mesh {
-            vertices: vec![[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0]],
-            triangles: vec![[0, 1, 2]],
-        };
-        let err = object_from_mesh(&flat, 1.0, "sheet").unwrap_err().to_string();
-        assert!(err.contains("flat"), "{err}");
+        // A box with its lid missing: open.
+        let mut open = boxy.clone();
+        let lid: Vec<usize> = (0..open.triangles.len())
+            .filter(|&t| {
+                open.triangles[t]
+                    .iter()
+                    .all(|&i| open.vertices[i as usize][2] > 0.0)
+            })
+            .collect();
+        assert_eq!(lid.len(), 2);
+        open.triangles
+            .retain(|t| !t.iter().all(|&i| open.vertices[i as usize][2] > 0.0));
+        let err = object_from_mesh(&open, 1.0, "open_box").unwrap_err().to_string();
+        assert!(
+            err.contains("not a closed surface: 4 edges border one triangle"),
+            "{err}"
+        );
+        // A fin glued to one edge of the box: that edge borders three triangles.
+        let mut finned = boxy.clone();
+        finned.vertices.push([0.0, 0.2, 0.0]);
+        let [a, b, _] = finned.triangles[0];
+        finned.triangles.push([a, b, finned.vertices.len() as u32 - 1]);
+        let err = object_from_mesh(&finned, 1.0, "finned").unwrap_err().to_string();
+        assert!(err.contains("more than two"), "{err}");
     }
 }

@@ -44,6 +44,37 @@ pub struct TrialConfig {
     pub shake_hz: f32,
     /// See `shake_m`.
     pub shake_s: f32,
+    /// After the shake, carry the object to a basket and let it go there;
+    /// `None`: the trial ends with the shake.
+    pub carry: Option<Basket>,
+}
+
+/// The basket of a carry: a box open at the top beside the table, its
+/// floor at the table's height.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Basket {
+    /// Centre of its floor in x and y (m); z is the table's.
+    pub centre_xy: [f32; 2],
+    /// Half the inner side (m).
+    pub inner_half_m: f32,
+    /// Wall height (m).
+    pub wall_m: f32,
+    /// Horizontal carry speed (m/s).
+    pub speed: f32,
+    /// How long the object may fall and settle after the release (s).
+    pub release_s: f32,
+}
+
+impl Default for Basket {
+    fn default() -> Self {
+        Self {
+            centre_xy: [0.0, -0.75],
+            inner_half_m: 0.15,
+            wall_m: 0.12,
+            speed: 0.5,
+            release_s: 1.0,
+        }
+    }
 }
 
 impl Default for TrialConfig {
@@ -60,6 +91,7 @@ impl Default for TrialConfig {
             shake_m: 0.01,
             shake_hz: 2.0,
             shake_s: 0.5,
+            carry: None,
         }
     }
 }
@@ -67,14 +99,16 @@ impl Default for TrialConfig {
 /// What a trial came to.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum TrialOutcome {
-    /// Still between the pads after the lift and the shake.
+    /// Still between the pads after the lift and the shake (with a carry:
+    /// and then let go into the basket, where it came to rest).
     Held {
         /// How far the object rose (m).
         lifted_m: f32,
     },
     /// The pads closed on each other, or never both reached the squeeze force.
     NoGrip,
-    /// Gripped, then lost during the lift or the shake.
+    /// Gripped, then lost during the lift, the shake or the carry (or let
+    /// go over the basket and came to rest outside it).
     Dropped {
         /// How far the object rose before it was lost (m).
         lifted_m: f32,
@@ -126,12 +160,28 @@ pub(crate) fn add_object(world: &mut PhysicsWorld, object: &PlacedObject, fricti
         .0
 }
 
+/// One step of the grip servo while holding.
+type Servo<'a> = dyn Fn(&PhysicsWorld, &mut Hand) + 'a;
+
+/// Moves the hand (palm and pads) to a grasp pose for the next step.
+type Place<'a> = dyn Fn(&mut PhysicsWorld, &Hand, &Pose) + 'a;
+
 struct Hand {
     palm: RigidBodyHandle,
     pads: [RigidBodyHandle; 2],
     pad_colliders: [ColliderHandle; 2],
     /// Pad centre offsets along the closing axis (m, grasp frame).
     offsets: [f32; 2],
+}
+
+/// A trial's outcome and where every scene object ended up.
+#[derive(Debug, Clone)]
+pub struct Trial {
+    /// What it came to.
+    pub outcome: TrialOutcome,
+    /// Final pose of every scene object, in scene order (the target too:
+    /// in the hand, in the basket, or wherever it fell).
+    pub poses: Vec<Pose>,
 }
 
 /// Runs the grasp `world_from_grasp` (opening `width_m`) on object `target`.
@@ -143,10 +193,45 @@ pub fn trial(
     gripper: &GripperModel,
     config: &TrialConfig,
 ) -> TrialOutcome {
+    run_trial(scene, target, world_from_grasp, width_m, gripper, config).outcome
+}
+
+/// [`trial`], also returning where the objects ended up, so a caller can
+/// carry the disturbance over to the next attempt.
+pub fn run_trial(
+    scene: &Scene,
+    target: usize,
+    world_from_grasp: &Isometry3<f64>,
+    width_m: f64,
+    gripper: &GripperModel,
+    config: &TrialConfig,
+) -> Trial {
     let (mut world, bodies) = scene_world(scene, config.dt, config.friction);
+    let poses = |world: &PhysicsWorld| bodies.iter().map(|&b| *world.bodies[b].position()).collect();
     let Some(&object) = bodies.get(target) else {
-        return TrialOutcome::NoGrip;
+        return Trial {
+            outcome: TrialOutcome::NoGrip,
+            poses: poses(&world),
+        };
     };
+    if let Some(b) = &config.carry {
+        let (h, t, inner) = (b.wall_m / 2.0, 0.005, b.inner_half_m);
+        let [x, y] = b.centre_xy;
+        let body = world.insert_body(RigidBodyBuilder::fixed().translation(Vector::new(x, y, scene.table_z)));
+        for (hx, hy, hz, at) in [
+            (inner + 2.0 * t, inner + 2.0 * t, t, Vector::new(0.0, 0.0, -t)),
+            (t, inner + 2.0 * t, h, Vector::new(inner + t, 0.0, h)),
+            (t, inner + 2.0 * t, h, Vector::new(-inner - t, 0.0, h)),
+            (inner, t, h, Vector::new(0.0, inner + t, h)),
+            (inner, t, h, Vector::new(0.0, -inner - t, h)),
+        ] {
+            let wall = ColliderBuilder::cuboid(hx, hy, hz)
+                .translation(at)
+                .friction(config.friction);
+            world.insert_collider(wall, Some(body));
+        }
+    }
+    let basket = config.carry;
     let start_z = world.bodies[object].translation().z;
 
     let grasp = pose_of(world_from_grasp);
@@ -224,7 +309,10 @@ pub fn trial(
     for _ in 0..close_steps {
         servo(&world, &mut hand, true);
         if hand.offsets[1] - hand.offsets[0] < g.pad_thickness_m + 0.001 {
-            return TrialOutcome::NoGrip;
+            return Trial {
+                outcome: TrialOutcome::NoGrip,
+                poses: poses(&world),
+            };
         }
         place(&mut world, &hand, &grasp);
         world.step();
@@ -234,7 +322,10 @@ pub fn trial(
         }
     }
     if !gripped {
-        return TrialOutcome::NoGrip;
+        return Trial {
+            outcome: TrialOutcome::NoGrip,
+            poses: poses(&world),
+        };
     }
     // Lift, then shake, servoing the grip all along.
     let lift_steps = (config.lift_m / config.lift_speed / config.dt) as usize;
@@ -251,11 +342,100 @@ pub fn trial(
     }
     let lifted = world.bodies[object].translation().z - start_z;
     let touching = (0..2).all(|k| force(&world, hand.pad_colliders[k]) > 0.0);
-    if touching && lifted > 0.8 * config.lift_m {
-        TrialOutcome::Held { lifted_m: lifted }
-    } else {
-        TrialOutcome::Dropped { lifted_m: lifted }
+    let held = touching && lifted > 0.8 * config.lift_m;
+    let outcome = match basket {
+        _ if !held => TrialOutcome::Dropped { lifted_m: lifted },
+        None => TrialOutcome::Held { lifted_m: lifted },
+        Some(basket) => {
+            let lifted_pose = Pose::from_translation(Vector::new(0.0, 0.0, config.lift_m)) * grasp;
+            let servo_holding = |w: &PhysicsWorld, h: &mut Hand| servo(w, h, false);
+            let motion = (
+                &servo_holding as &dyn Fn(&PhysicsWorld, &mut Hand),
+                &place as &Place<'_>,
+            );
+            if carry_and_release(
+                &mut world,
+                &mut hand,
+                lifted_pose,
+                object,
+                &bodies,
+                scene,
+                &basket,
+                motion,
+                config,
+            ) {
+                TrialOutcome::Held { lifted_m: lifted }
+            } else {
+                TrialOutcome::Dropped { lifted_m: lifted }
+            }
+        }
+    };
+    Trial {
+        outcome,
+        poses: poses(&world),
     }
+}
+
+/// Carries the held `object` from `lifted` (the hand's pose) to the basket:
+/// up until its bottom clears every other object and the basket's walls by
+/// 3 cm, across at the basket's speed, then opens the pads and waits.
+/// True when the object came to rest inside the basket.
+#[allow(clippy::too_many_arguments)] // the trial's state, passed on rather than rebuilt
+fn carry_and_release(
+    world: &mut PhysicsWorld,
+    hand: &mut Hand,
+    lifted: Pose,
+    object: RigidBodyHandle,
+    bodies: &[RigidBodyHandle],
+    scene: &Scene,
+    basket: &Basket,
+    (servo, place): (&Servo<'_>, &Place<'_>),
+    config: &TrialConfig,
+) -> bool {
+    let aabb_of = |world: &PhysicsWorld, b: RigidBodyHandle| {
+        let body = &world.bodies[b];
+        world.colliders[body.colliders()[0]].compute_aabb()
+    };
+    let start_z = scene.table_z;
+    let others_top = bodies
+        .iter()
+        .filter(|&&b| b != object)
+        .map(|&b| aabb_of(world, b).maxs.z)
+        .fold(scene.table_z + basket.wall_m, f32::max);
+    let below_hand = lifted.translation.z - aabb_of(world, object).mins.z;
+    let carry_z = lifted.translation.z.max(others_top + 0.03 + below_hand);
+    let [bx, by] = basket.centre_xy;
+    let waypoints = [
+        Vector::new(lifted.translation.x, lifted.translation.y, carry_z),
+        Vector::new(bx, by, carry_z),
+    ];
+    let mut at = lifted.translation;
+    let step_len = basket.speed * config.dt;
+    for target in waypoints {
+        while (target - at).length() > 1e-6 {
+            let d = target - at;
+            at += d * (step_len / d.length()).min(1.0);
+            servo(world, hand);
+            place(world, hand, &Pose::from_parts(at, lifted.rotation));
+            world.step();
+        }
+    }
+    // Open the pads (5 cm each at the closing speed), then let it fall and settle.
+    let open_steps = (0.05 / config.close_speed / config.dt) as usize;
+    let release_steps = (basket.release_s / config.dt) as usize;
+    let pose = Pose::from_parts(at, lifted.rotation);
+    for step in 0..open_steps + release_steps {
+        if step < open_steps {
+            hand.offsets[0] -= config.close_speed * config.dt;
+            hand.offsets[1] += config.close_speed * config.dt;
+        }
+        place(world, hand, &pose);
+        world.step();
+    }
+    let c = aabb_of(world, object).center();
+    (c.x - bx).abs() < basket.inner_half_m
+        && (c.y - by).abs() < basket.inner_half_m
+        && c.z < start_z + basket.wall_m
 }
 
 /// How often analytic labels and physics trials agree on a sample of grasps.

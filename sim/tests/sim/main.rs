@@ -457,7 +457,7 @@ fn datagen_writes_shards_its_manifest_counts() {
 
 mod physics {
     use mvgrasp_sim::grasp::{GraspLabel, GripperModel, label_grasp};
-    use mvgrasp_sim::physics::{TrialConfig, TrialOutcome, trial};
+    use mvgrasp_sim::physics::{Basket, TrialConfig, TrialOutcome, run_trial, trial};
     use nalgebra::Vector3 as V3;
 
     use super::grasp_labels::{box_scene, top_down_grasp};
@@ -504,6 +504,49 @@ mod physics {
             &config,
         );
         assert_eq!(outcome, TrialOutcome::NoGrip);
+    }
+
+    #[test]
+    fn a_held_box_is_carried_over_its_neighbour_into_the_basket() {
+        let g = GripperModel::robotiq_2f_140();
+        let basket = Basket::default();
+        let config = TrialConfig {
+            carry: Some(basket),
+            ..TrialConfig::default()
+        };
+        // The box, and a 25 cm tall box between it and the basket (at y = -0.75).
+        let mut scene = box_scene([0.06, 0.04, 0.10]);
+        let mut tall = box_scene([0.05, 0.05, 0.25]).objects.remove(0);
+        tall.world_from_object.translation.y -= 0.3;
+        tall.world_aabb = tall.model.aabb_at(&tall.world_from_object);
+        scene.objects.push(tall);
+        let grasp = top_down_grasp(0.0, 0.0, 0.06, V3::y());
+        let result = run_trial(&scene, 0, &grasp, 0.04, &g, &config);
+        assert!(result.outcome.is_held(), "{:?}", result.outcome);
+        let [bx, by] = basket.centre_xy;
+        let box_at = result.poses[0].translation;
+        assert!(
+            (box_at.x - bx).abs() < basket.inner_half_m && (box_at.y - by).abs() < basket.inner_half_m,
+            "the box rests at {box_at:?}, the basket is at ({bx}, {by})"
+        );
+        assert!(box_at.z < scene.table_z + 0.1, "the box was let go: {box_at:?}");
+        // Carried over the tall one, not through it: it did not move.
+        let tall_moved =
+            (result.poses[1].translation - scene.objects[1].world_from_object.translation).length();
+        assert!(tall_moved < 0.002, "the neighbour moved {tall_moved} m");
+        // A grasp that never grips leaves the scene where it was.
+        let missed = run_trial(
+            &scene,
+            0,
+            &top_down_grasp(0.0, 0.2, 0.06, V3::y()),
+            0.04,
+            &g,
+            &config,
+        );
+        assert_eq!(missed.outcome, TrialOutcome::NoGrip);
+        let box_moved =
+            (missed.poses[0].translation - scene.objects[0].world_from_object.translation).length();
+        assert!(box_moved < 0.002, "the box moved {box_moved} m");
     }
 }
 
