@@ -4,7 +4,10 @@
         --version mvgrasp-1 [--golden models/golden]
 
 BatchNorm is folded into the convolutions first (and the graph is checked to
-hold none), the batch axis is dynamic, opset 17, and the metadata carries
+hold none); then every transposed convolution is rewritten in its sub-pixel
+form, a 3x3 convolution and a DepthToSpace (`model.subpixel`: the same
+function, measured faster on CPU; `--no-subpixel` keeps ConvTranspose).
+The batch axis is dynamic, opset 17, and the metadata carries
 the contract `mvgrasp-core` reads (core/src/infer/contract.rs): input size,
 metres per pixel, width scale, normalisation, output order, model and data
 versions. onnxruntime's output must equal PyTorch's within 1e-4, else the
@@ -24,7 +27,7 @@ import onnxruntime
 import torch
 
 from . import dataset
-from .model import GraspNet, fold_batchnorm
+from .model import GraspNet, fold_batchnorm, subpixel
 
 TOLERANCE = 1e-4
 OUTPUTS = "quality,cos2phi,sin2phi,width"
@@ -42,8 +45,10 @@ def contract_metadata(contract, version, data_version):
     }
 
 
-def export(model, size, path, metadata):
+def export(model, size, path, metadata, sub_pixel=True):
     folded = fold_batchnorm(model)
+    if sub_pixel:
+        folded = subpixel(folded)
     example = torch.zeros(2, 1, size, size)
     torch.onnx.export(folded, (example,), path, input_names=["views"], output_names=["maps"],
                       dynamic_axes={"views": {0: "batch"}, "maps": {0: "batch"}}, opset_version=17,
@@ -52,6 +57,8 @@ def export(model, size, path, metadata):
     ops = {n.op_type for n in graph.graph.node}
     if "BatchNormalization" in ops:
         raise SystemExit(f"{path}: BatchNormalization left in the graph")
+    if sub_pixel and "ConvTranspose" in ops:
+        raise SystemExit(f"{path}: ConvTranspose left in the sub-pixel graph")
     del graph.metadata_props[:]
     for key, value in metadata.items():
         entry = graph.metadata_props.add()
@@ -81,6 +88,7 @@ def main(argv=None):
     p.add_argument("--out", required=True)
     p.add_argument("--version", required=True, help="model version written into the metadata")
     p.add_argument("--golden", help="folder for golden input.npy / output.npy")
+    p.add_argument("--no-subpixel", action="store_true", help="keep the transposed convolutions as they are")
     args = p.parse_args(argv)
 
     saved = torch.load(os.path.join(args.run, "model.pt"), map_location="cpu")
@@ -90,7 +98,7 @@ def main(argv=None):
     ds = dataset.load(args.data, mmap=True)
     size = ds.contract["input_size_px"]
     metadata = contract_metadata(ds.contract, args.version, ds.manifest["data_version"])
-    ops = export(model, size, args.out, metadata)
+    ops = export(model, size, args.out, metadata, sub_pixel=not args.no_subpixel)
     _, held = dataset.split_by_instance(ds.meta)
     # Two held-out views that have positives, plus a batch of 16 for the check.
     with_grasps = [i for i in held if ds.meta[i]["positives"] > 0]

@@ -64,3 +64,44 @@ def fold_batchnorm(model):
         layers.append(nn.Sequential(new, nn.ReLU(inplace=True)))
     folded.body = nn.Sequential(*layers)
     return folded.eval()
+
+
+def subpixel(folded):
+    """An equivalent copy of a BN-folded network with every transposed
+    convolution as a 3x3 convolution to s*s times the channels followed by
+    a pixel shuffle (ONNX DepthToSpace): the same function, cheaper on CPU.
+
+    For ConvTranspose2d(k, stride s, padding s, output padding op) with
+    k + op = 3 s (all of this network's), output pixel s q + r is
+    sum over m in {-1, 0, 1} of x[q - m] w[s (m + 1) + r]: three taps per
+    output phase r, taps past the kernel being zero. The 3x3 convolution's
+    output channel c s^2 + ry s + rx holds phase (ry, rx) of channel c,
+    which is the order PixelShuffle (DepthToSpace, mode CRD) expects.
+    """
+    layers = []
+    for block in folded.body:
+        conv = block[0]
+        if isinstance(conv, nn.ConvTranspose2d):
+            (k, _), (s, _), (p, _), (op, _) = conv.kernel_size, conv.stride, conv.padding, conv.output_padding
+            if p != s or k + op != 3 * s:
+                raise ValueError(f"no sub-pixel form for ConvTranspose2d(k={k}, s={s}, p={p}, op={op})")
+            cin, cout = conv.in_channels, conv.out_channels
+            w = conv.weight.data  # [cin, cout, k, k]
+            new_w = torch.zeros(cout, s, s, cin, 3, 3)
+            for ry in range(s):
+                for rx in range(s):
+                    for ty in range(3):
+                        for tx in range(3):
+                            ky, kx = s * (2 - ty) + ry, s * (2 - tx) + rx
+                            if ky < k and kx < k:
+                                new_w[:, ry, rx, :, ty, tx] = w[:, :, ky, kx].t()
+            new = nn.Conv2d(cin, cout * s * s, 3, 1, 1, bias=True)
+            new.weight.data = new_w.reshape(cout * s * s, cin, 3, 3)
+            new.bias.data = conv.bias.data.repeat_interleave(s * s)
+            layers.append(nn.Sequential(new, nn.PixelShuffle(s), nn.ReLU(inplace=True)))
+        else:
+            layers.append(block)
+    out = GraspNet(folded.architecture).eval()
+    out.body = nn.Sequential(*layers)
+    out.heads = folded.heads
+    return out.eval()

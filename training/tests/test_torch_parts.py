@@ -65,6 +65,21 @@ class Network(unittest.TestCase):
             diff = (model(x) - fold_batchnorm(model)(x)).abs().max().item()
         self.assertLess(diff, 1e-5)
 
+    def test_the_sub_pixel_form_keeps_the_function(self):
+        import torch
+        from torch import nn
+        from mvgrasp_train.model import fold_batchnorm, subpixel
+        for arch in ("paper", "narrow"):
+            folded = fold_batchnorm(self.trained_a_little(arch))
+            fast = subpixel(folded)
+            self.assertFalse(any(isinstance(m, nn.ConvTranspose2d) for m in fast.modules()))
+            self.assertEqual(sum(isinstance(m, nn.PixelShuffle) for m in fast.modules()), 6)
+            for size in (48, 72):
+                x = torch.rand(2, 1, size, size)
+                with torch.no_grad():
+                    diff = (folded(x) - fast(x)).abs().max().item()
+                self.assertLess(diff, 1e-5, f"{arch} at {size} px")
+
     def test_export_matches_pytorch_and_carries_the_contract(self):
         import onnx
         import onnxruntime
@@ -75,6 +90,8 @@ class Network(unittest.TestCase):
             path = os.path.join(d, "m.onnx")
             ops = export.export(model, 48, path, export.contract_metadata(contract, "t-1", "sim-test"))
             self.assertNotIn("BatchNormalization", ops)
+            self.assertNotIn("ConvTranspose", ops)
+            self.assertIn("DepthToSpace", ops)
             meta = {p.key: p.value for p in onnx.load(path).metadata_props}
             self.assertEqual(meta["mvgrasp.input_size_px"], "48")
             self.assertEqual(meta["mvgrasp.outputs"], "quality,cos2phi,sin2phi,width")
