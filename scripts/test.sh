@@ -43,7 +43,10 @@ if ! PYTHONPATH="$pydeps" python3 -c "import numpy" >/dev/null 2>&1; then
 fi
 cargo build --quiet -p mvgrasp-sim --bin sim
 rm -rf target/datagen-ci
-target/debug/sim datagen --scenes 6 --scenes-per-shard 3 --out target/datagen-ci
+# Every scenario but clutter, procedural families and two sample meshes (OBJ, binary STL).
+target/debug/sim datagen --scenes 6 --scenes-per-shard 3 --scenarios isolated,packed,pile \
+    --families box,cylinder,mug,bottle --meshes samples/meshes/u_channel.obj,samples/meshes/hex_nut.stl \
+    --out target/datagen-ci
 PYTHONPATH="$pydeps" python3 sim/python/read_dataset.py target/datagen-ci --check
 echo "== training: dataset reader, augmentation, metric (numpy); torch tests skip, saying why, without torch"
 PYTHONPATH="$pydeps" python3 -m unittest discover -s training/tests -v
