@@ -36,8 +36,9 @@ enum Worker {
     Remote(Box<Remote>),
 }
 
-/// `git rev-parse --short HEAD`, with `-dirty` when tracked files outside
-/// `results/` (where reports go) differ from it.
+/// `git rev-parse --short HEAD`, with `-dirty` when tracked files differ
+/// from it, other than `results/` (where reports go) and Markdown (docs
+/// cannot change an outcome).
 fn git_revision() -> String {
     let git = |args: &[&str]| {
         std::process::Command::new("git")
@@ -57,6 +58,7 @@ fn git_revision() -> String {
         "--",
         ":/",
         ":(top,exclude)results",
+        ":(top,exclude,glob)**/*.md",
     ]) {
         Some(changes) if changes.is_empty() => head,
         _ => format!("{head}-dirty"),
