@@ -27,6 +27,7 @@ if [[ ! -f "$model" ]]; then
 fi
 cargo build --release --quiet -p mvgrasp-server -p mvgrasp-client
 out=target/bench/service.jsonl
+echo "$model" > target/bench/model.txt  # the plot's title
 : > "$out"
 scene=(--depth samples/table6/depth.png --camera samples/table6/camera.json)
 

@@ -35,7 +35,9 @@ right.set_xticks(list(x), labels)
 right.set_ylabel("calls / s")
 for i, r in enumerate(rows):
     right.text(i, r["report"]["throughput_per_s"], f"{r['report']['throughput_per_s']:.1f}", ha="center", va="bottom")
-fig.suptitle("mvgrasp-server, samples/table6 (640x480, 6 objects), paper network at 96 px, CPU, 2 cores")
+model_file = ROOT / "target" / "bench" / "model.txt"
+model = model_file.read_text().strip() if model_file.exists() else "model not recorded"
+fig.suptitle(f"mvgrasp-server, samples/table6 (640x480, 6 objects), {model}, CPU, 2 cores")
 fig.tight_layout()
 out = ROOT / "docs" / "service_bench.png"
 fig.savefig(out, dpi=110)
