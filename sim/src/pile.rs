@@ -80,8 +80,8 @@ fn settling_world(scene: &Scene, config: &SettleConfig) -> (PhysicsWorld, Vec<Ri
 }
 
 /// Steps `world` until every body in `bodies` rests (checked every 1/10 s)
-/// or `config.max_s` has passed. Returns the simulated time (s).
-fn run_to_rest(world: &mut PhysicsWorld, bodies: &[RigidBodyHandle], config: &SettleConfig) -> f32 {
+/// or `config.max_s` has passed.
+fn run_to_rest(world: &mut PhysicsWorld, bodies: &[RigidBodyHandle], config: &SettleConfig) {
     let check_every = ((0.1 / config.dt) as usize).max(1);
     let max_steps = (config.max_s / config.dt) as usize;
     for step in 1..=max_steps {
@@ -94,10 +94,9 @@ fn run_to_rest(world: &mut PhysicsWorld, bodies: &[RigidBodyHandle], config: &Se
                         && b.angvel().length() < config.rest_spin_rad_s)
             })
         {
-            return step as f32 * config.dt;
+            return;
         }
     }
-    max_steps as f32 * config.dt
 }
 
 /// Writes the bodies' poses back into `scene`, and drops the objects that
@@ -143,8 +142,8 @@ fn random_rotation(rng: &mut SplitMix64) -> Rotation {
     .normalize()
 }
 
-/// Drops `models` into `drop_box` on the table of `scene` (which must hold
-/// no objects yet), one at a time in random orientations, each released
+/// Drops `models` into `drop_box` on the table of `scene` (replacing any
+/// objects it holds), one at a time in random orientations, each released
 /// 2 cm over what is already in the box and left to come to rest (at most
 /// `config.max_s`); then lifts the box away and lets the heap settle again.
 /// Short falls keep impacts slow, so nothing tunnels into the table. The
