@@ -121,12 +121,13 @@ fn stages(c: &mut Criterion) {
         b.iter(|| {
             framed
                 .iter()
-                .flat_map(|(_, local)| {
+                .flat_map(|(frame, local)| {
                     ViewAxis::ALL.map(|axis| {
-                        OrthoView::render(
+                        OrthoView::render_within(
                             axis,
                             true,
                             black_box(local),
+                            frame.extent_f32(),
                             contract.input_size_px,
                             contract.pixel_size_m,
                         )

@@ -313,10 +313,11 @@ impl Planner {
             .map(|(frame, local)| {
                 let camera_in_object = frame.world_from_object.inverse_transform_point(&camera);
                 let plus_y = camera_in_object.y >= 0.0;
+                let extent = frame.extent_f32();
                 self.config
                     .views
                     .iter()
-                    .map(|&axis| OrthoView::render(axis, plus_y, local, l, s))
+                    .map(|&axis| OrthoView::render_within(axis, plus_y, local, extent, l, s))
                     .collect()
             })
             .collect();

@@ -26,6 +26,16 @@ pub struct ObjectFrame {
     pub point_count: usize,
 }
 
+impl ObjectFrame {
+    /// The extent as `(min, max)` in f32, the precision it was computed in
+    /// (exact: the f64 fields hold f32 values), for
+    /// [`crate::OrthoView::render_within`].
+    pub fn extent_f32(&self) -> ([f32; 3], [f32; 3]) {
+        let f = |v: &Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
+        (f(&self.extent_min_m), f(&self.extent_max_m))
+    }
+}
+
 const MICRONS: f64 = 1e6;
 
 /// Builds the frame of the points `indices` of `points` (world frame) and
@@ -85,22 +95,26 @@ pub fn object_frame(
     // Object-frame coordinates: R^T (p - c), in f32 for the view renderer.
     let r = rotation.matrix().transpose().cast::<f32>();
     let c = centroid.cast::<f32>();
-    let mut lo = Vector3::repeat(f32::INFINITY);
-    let mut hi = Vector3::repeat(f32::NEG_INFINITY);
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
     let local: Vec<[f32; 3]> = indices
         .iter()
         .map(|&i| {
             let p = Vector3::from(points[i as usize]) - c;
             let q = r * p;
-            lo = lo.inf(&q);
-            hi = hi.sup(&q);
-            [q.x, q.y, q.z]
+            let q = [q.x, q.y, q.z];
+            for a in 0..3 {
+                // Plain comparisons: the points are finite.
+                lo[a] = if q[a] < lo[a] { q[a] } else { lo[a] };
+                hi[a] = if q[a] > hi[a] { q[a] } else { hi[a] };
+            }
+            q
         })
         .collect();
     let (lo, hi) = if indices.is_empty() {
         (Vector3::zeros(), Vector3::zeros())
     } else {
-        (lo, hi)
+        (Vector3::from(lo), Vector3::from(hi))
     };
     let frame = ObjectFrame {
         world_from_object,

@@ -108,14 +108,19 @@ fn connected_components(points: &[[f32; 3]], tolerance_m: f32) -> (Cells, Vec<u3
     // the union-find skips pairs already joined, the cells' point boxes
     // settle most of the rest, and only the remainder compares points.
     let mut sets = UnionFind::new(cells.len());
-    let mut consider = |a: usize, b: usize| {
-        if sets.find(a) != sets.find(b)
-            && cells.may_touch(a, b, radius_sq)
-            && cells.any_pair_within(points, a, b, radius_sq)
-        {
-            sets.union(a, b);
+    // Joins cell `a` with those of its forward neighbours `found` that hold
+    // a close pair (`a`'s root is found once, and kept across joins).
+    let mut join = |a: usize, found: &[u32]| {
+        let mut root = sets.find(a);
+        for &b in found {
+            let b = b as usize;
+            let other = sets.find(b);
+            if other != root && cells.may_touch(a, b, radius_sq) && cells.any_pair_within(a, b, radius_sq) {
+                root = sets.union_roots(root, other);
+            }
         }
     };
+    let mut found = [0u32; FORWARD_OFFSETS.len()];
     match &cells.index {
         CellIndex::Dense { cell, dims, .. } => {
             // The grid is padded by 2 cells on every side, so a neighbour's
@@ -125,25 +130,31 @@ fn connected_components(points: &[[f32; 3]], tolerance_m: f32) -> (Cells, Vec<u3
             let deltas = FORWARD_OFFSETS
                 .map(|[dx, dy, dz]| dx as isize + dy as isize * stride_y + dz as isize * stride_z);
             for (a, &slot) in cells.slot.iter().enumerate() {
+                // Gathered without branching: a quarter of the slots hold a
+                // cell, in no pattern a branch predictor learns.
+                let mut n = 0;
                 for &delta in &deltas {
                     let b = cell[(slot as isize + delta) as usize];
-                    if b != u32::MAX {
-                        consider(a, b as usize);
-                    }
+                    found[n] = b;
+                    n += usize::from(b != u32::MAX);
                 }
+                join(a, &found[..n]);
             }
         }
         CellIndex::Sparse(map) => {
             for (a, &[x, y, z]) in cells.coords.iter().enumerate() {
+                let mut n = 0;
                 for &[dx, dy, dz] in FORWARD_OFFSETS.iter() {
                     let c = [x as i64 + dx, y as i64 + dy, z as i64 + dz];
                     if c.iter().any(|&v| v < 0 || v > i64::from(u32::MAX)) {
                         continue;
                     }
                     if let Some(&b) = map.get(&c.map(|v| v as u32)) {
-                        consider(a, b as usize);
+                        found[n] = b;
+                        n += 1;
                     }
                 }
+                join(a, &found[..n]);
             }
         }
     }
@@ -199,6 +210,8 @@ struct Cells {
     coords: Vec<[u32; 3]>,
     start: Vec<u32>,
     members: Vec<u32>,
+    /// The points in `members` order (contiguous per cell).
+    sorted: Vec<[f32; 3]>,
     lo: Vec<[f32; 3]>,
     hi: Vec<[f32; 3]>,
     /// Per cell, the sum of its points' coordinates in 10 um units.
@@ -214,49 +227,37 @@ const PAD: u32 = 2;
 enum CellIndex {
     /// Cell id per slot (`u32::MAX` = empty) over the box grown by [`PAD`].
     Dense {
-        origin: [u32; 3],
         dims: [usize; 3],
         cell: Vec<u32>,
     },
     Sparse(FxHashMap<[u32; 3], u32>),
 }
 
-/// Integer cell coordinate of `v`, offset by 2^24 so it is never negative.
-/// The floor is a truncating cast corrected for negatives (no libm call on
-/// baseline x86-64); coordinates beyond +-2^23 cells saturate.
-#[inline]
-fn cell_coord(v: f32, inv: f32) -> u32 {
-    const OFFSET: i32 = 1 << 24;
-    let t = (v * inv).clamp(-8_388_608.0, 8_388_608.0);
-    let truncated = t as i32;
-    let floor = truncated - i32::from(t < truncated as f32);
-    (floor + OFFSET) as u32
-}
-
 impl Cells {
     fn new(points: &[[f32; 3]], edge: f32) -> Self {
         let inv = 1.0 / edge;
-        // The box of the points in metres (a cheap pass), then in cells:
-        // cell_coord is monotonic, so the cells of the extremes bound all cells.
+        // The box of the points in metres (a cheap pass); cell coordinates
+        // count from its low corner, so they are never negative and the
+        // floor is a plain truncating cast (saturating beyond 2^32 cells).
         let mut lo_m = [f32::INFINITY; 3];
         let mut hi_m = [f32::NEG_INFINITY; 3];
         for p in points {
             for a in 0..3 {
-                lo_m[a] = lo_m[a].min(p[a]);
-                hi_m[a] = hi_m[a].max(p[a]);
+                // Plain comparisons (one instruction each); f32::min's NaN
+                // rule costs more and the points are finite.
+                lo_m[a] = if p[a] < lo_m[a] { p[a] } else { lo_m[a] };
+                hi_m[a] = if p[a] > hi_m[a] { p[a] } else { hi_m[a] };
             }
         }
-        let lo = lo_m.map(|v| cell_coord(v, inv));
-        let hi = hi_m.map(|v| cell_coord(v, inv));
-        let dims = [0, 1, 2].map(|a| (hi[a] - lo[a] + 2 * PAD) as usize + 1);
+        let coord = |p: &[f32; 3]| [0, 1, 2].map(|a| (((p[a] - lo_m[a]) * inv) as u32).saturating_add(PAD));
+        let hi = coord(&hi_m);
+        let dims = hi.map(|h| h as usize + PAD as usize + 1);
         let dense = dims
             .iter()
             .try_fold(1usize, |acc, &d| acc.checked_mul(d))
             .filter(|&n| n <= MAX_DENSE_CELLS);
-        let origin = lo.map(|v| v - PAD); // cell coordinates start at 2^24, so this never wraps
         let mut index = match dense {
             Some(n) => CellIndex::Dense {
-                origin,
                 dims,
                 cell: vec![u32::MAX; n],
             },
@@ -268,7 +269,7 @@ impl Cells {
         // Consecutive points (neighbouring pixels) mostly share a cell.
         let mut last = ([u32::MAX; 3], 0u32);
         for p in points {
-            let c = p.map(|v| cell_coord(v, inv));
+            let c = coord(p);
             if c != last.0 {
                 let (id, s) = index.get_or_insert(c, coords.len() as u32);
                 if id as usize == coords.len() {
@@ -287,27 +288,35 @@ impl Cells {
         for c in 0..n {
             start[c + 1] += start[c];
         }
+        // Points sorted by cell (a counting sort), with their original index.
         let mut fill = start.clone();
         let mut members = vec![0u32; points.len()];
+        let mut sorted = vec![[0f32; 3]; points.len()];
+        for (i, (&c, p)) in cell_of_point.iter().zip(points).enumerate() {
+            let at = fill[c as usize] as usize;
+            members[at] = i as u32;
+            sorted[at] = *p;
+            fill[c as usize] += 1;
+        }
         let mut bb_lo = vec![[f32::INFINITY; 3]; n];
         let mut bb_hi = vec![[f32::NEG_INFINITY; 3]; n];
         let mut key_sum = vec![[0i64; 3]; n];
-        for (i, &c) in cell_of_point.iter().enumerate() {
-            let c = c as usize;
-            members[fill[c] as usize] = i as u32;
-            fill[c] += 1;
-            for a in 0..3 {
-                let v = points[i][a];
-                bb_lo[c][a] = bb_lo[c][a].min(v);
-                bb_hi[c][a] = bb_hi[c][a].max(v);
-                // 10 um units, truncated; the cast saturates beyond +-21 km.
-                key_sum[c][a] += i64::from((v * 1e5) as i32);
+        for c in 0..n {
+            let (lo, hi, sum) = (&mut bb_lo[c], &mut bb_hi[c], &mut key_sum[c]);
+            for p in &sorted[start[c] as usize..start[c + 1] as usize] {
+                for a in 0..3 {
+                    lo[a] = if p[a] < lo[a] { p[a] } else { lo[a] };
+                    hi[a] = if p[a] > hi[a] { p[a] } else { hi[a] };
+                    // 10 um units, truncated; the cast saturates beyond +-21 km.
+                    sum[a] += i64::from((p[a] * 1e5) as i32);
+                }
             }
         }
         Self {
             coords,
             start,
             members,
+            sorted,
             lo: bb_lo,
             hi: bb_hi,
             key_sum,
@@ -336,11 +345,13 @@ impl Cells {
         gap_sq <= radius_sq
     }
 
-    fn any_pair_within(&self, points: &[[f32; 3]], a: usize, b: usize, radius_sq: f32) -> bool {
-        self.members_of(a).iter().any(|&i| {
-            let p = points[i as usize];
-            self.members_of(b).iter().any(|&j| {
-                let q = points[j as usize];
+    fn points_of(&self, c: usize) -> &[[f32; 3]] {
+        &self.sorted[self.start[c] as usize..self.start[c + 1] as usize]
+    }
+
+    fn any_pair_within(&self, a: usize, b: usize, radius_sq: f32) -> bool {
+        self.points_of(a).iter().any(|p| {
+            self.points_of(b).iter().any(|q| {
                 (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2])
                     <= radius_sq
             })
@@ -352,8 +363,8 @@ impl CellIndex {
     /// The id of cell `c` (inserting `new_id` if it is not there yet) and its slot.
     fn get_or_insert(&mut self, c: [u32; 3], new_id: u32) -> (u32, u32) {
         match self {
-            CellIndex::Dense { origin, dims, cell } => {
-                let l = [0, 1, 2].map(|a| (c[a] - origin[a]) as usize);
+            CellIndex::Dense { dims, cell } => {
+                let l = c.map(|v| v as usize);
                 let slot = (l[2] * dims[1] + l[1]) * dims[0] + l[0];
                 if cell[slot] == u32::MAX {
                     cell[slot] = new_id;
@@ -388,16 +399,16 @@ impl UnionFind {
         x
     }
 
-    fn union(&mut self, a: usize, b: usize) {
-        let (mut a, mut b) = (self.find(a), self.find(b));
-        if a == b {
-            return;
-        }
-        if self.size[a] < self.size[b] {
-            std::mem::swap(&mut a, &mut b);
-        }
-        self.parent[b] = a as u32;
-        self.size[a] += self.size[b];
+    /// Joins the sets of two distinct roots; returns the new root.
+    fn union_roots(&mut self, a: usize, b: usize) -> usize {
+        let (big, small) = if self.size[a] < self.size[b] {
+            (b, a)
+        } else {
+            (a, b)
+        };
+        self.parent[small] = big as u32;
+        self.size[big] += self.size[small];
+        big
     }
 }
 

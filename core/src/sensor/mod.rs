@@ -400,9 +400,11 @@ fn depth_to_world(
             let s = mask.stride;
             let marked = mask.marked.iter().filter(|&&m| m).count();
             out.points.reserve(marked * s * s);
-            for v in 0..h {
-                let blocks = &mask.marked[(v / s) * mask.blocks_wide..(v / s + 1) * mask.blocks_wide];
-                // Runs of marked blocks -> column ranges.
+            let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+            for (block_row, blocks) in mask.marked.chunks_exact(mask.blocks_wide).enumerate() {
+                // Runs of marked blocks -> column ranges, shared by the
+                // block row's `s` pixel rows.
+                runs.clear();
                 let mut b = 0;
                 while b < blocks.len() {
                     if !blocks[b] {
@@ -413,7 +415,12 @@ fn depth_to_world(
                     while b < blocks.len() && blocks[b] {
                         b += 1;
                     }
-                    rays.row(frame, keep, v, start * s..(b * s).min(w), false, &mut out);
+                    runs.push(start * s..(b * s).min(w));
+                }
+                for v in block_row * s..((block_row + 1) * s).min(h) {
+                    for columns in &runs {
+                        rays.row(frame, keep, v, columns.clone(), false, &mut out);
+                    }
                 }
             }
         }

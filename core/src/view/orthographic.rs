@@ -102,6 +102,37 @@ impl OrthoView {
         size_px: usize,
         pixel_size_m: f32,
     ) -> Self {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for p in points_in_object {
+            for a in 0..3 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        Self::render_within(
+            axis,
+            camera_on_plus_y,
+            points_in_object,
+            (lo, hi),
+            size_px,
+            pixel_size_m,
+        )
+    }
+
+    /// [`OrthoView::render`] for points known to lie in the object-frame box
+    /// `extent` (`(min, max)`, e.g. the [`crate::ObjectFrame`]'s extent), which
+    /// saves a pass: the box bounds the pixels that can hold a surface.
+    /// A box larger than the points' gives the same view, only slower; one
+    /// that misses points gives a wrong view (never a panic).
+    pub fn render_within(
+        axis: ViewAxis,
+        camera_on_plus_y: bool,
+        points_in_object: &[[f32; 3]],
+        extent: ([f32; 3], [f32; 3]),
+        size_px: usize,
+        pixel_size_m: f32,
+    ) -> Self {
         let object_from_view = axis.object_from_view(camera_on_plus_y);
         // Every view axis is +- one object axis: a signed permutation, no matrix product.
         let axis_of = |column: usize| {
@@ -115,22 +146,41 @@ impl OrthoView {
         let half = l as f32 * 0.5;
         let (su, sv) = (su * inv, sv * inv);
         let mut depth = vec![f32::INFINITY; l * l];
-        let mut filled_box = PixelBox::EMPTY;
+        // The pixels the extent covers (clamped to the image): every filled
+        // pixel lies in it, as the view axes are signed object axes.
+        let (lo, hi) = extent;
         let side = l as f32;
-        for p in points_in_object {
-            let (u, v) = (su * p[ju] + half, sv * p[jv] + half);
-            // Bounds checked in floats, so the cast (the floor, for values
-            // in [0, l)) needs no saturation handling.
-            if !((u >= 0.0) & (v >= 0.0) & (u < side) & (v < side)) {
-                continue;
-            }
-            let (u, v) = (u as i32 as usize, v as i32 as usize);
-            filled_box.include(u, v);
-            let z = sd * p[jd];
-            let cell = &mut depth[v * l + u];
-            if z < *cell {
-                *cell = z;
-            }
+        let span = |j: usize, scale: f32| {
+            let (a, b) = (scale * lo[j] + half, scale * hi[j] + half);
+            (a.min(b), a.max(b))
+        };
+        let (su_span, sv_span) = (span(ju, su), span(jv, sv));
+        // Every point projects inside the image: the per-point test can go.
+        let inside = [su_span, sv_span].iter().all(|&(a, b)| a >= 0.0 && b < side);
+        let pixel_range = |(a, b): (f32, f32)| {
+            let (a, b) = (a.max(0.0), b.min(side - 1.0));
+            (a as usize, b as usize)
+        };
+        let ((u0, u1), (v0, v1)) = (pixel_range(su_span), pixel_range(sv_span));
+        let filled_box = if points_in_object.is_empty() || u0 > u1 || v0 > v1 || l == 0 {
+            PixelBox::EMPTY
+        } else {
+            PixelBox { u0, u1, v0, v1 }
+        };
+        let projection = Projection {
+            su,
+            sv,
+            sd,
+            half,
+            side,
+            l,
+        };
+        // One loop per axis permutation, so the coordinates are fixed loads.
+        match (ju, jv, jd) {
+            (0, 1, 2) => projection.splat::<0, 1, 2>(points_in_object, inside, &mut depth),
+            (1, 2, 0) => projection.splat::<1, 2, 0>(points_in_object, inside, &mut depth),
+            (0, 2, 1) => projection.splat::<0, 2, 1>(points_in_object, inside, &mut depth),
+            _ => projection.splat_any([ju, jv, jd], points_in_object, &mut depth),
         }
         let depth = fill_holes(&depth, l, &filled_box);
         // Every surface pixel lies in the box (holes are filled inside it):
@@ -200,6 +250,59 @@ impl OrthoView {
     }
 }
 
+/// The z-buffer splat of one view: pixel = scaled signed object coordinates.
+struct Projection {
+    su: f32,
+    sv: f32,
+    sd: f32,
+    half: f32,
+    side: f32,
+    l: usize,
+}
+
+impl Projection {
+    /// `CHECK`: whether points can fall outside the image (else the caller
+    /// knows from the extent that none does, and the test is skipped).
+    #[inline(always)]
+    fn splat_one<const CHECK: bool>(&self, (pu, pv, pd): (f32, f32, f32), depth: &mut [f32]) {
+        let (u, v) = (self.su * pu + self.half, self.sv * pv + self.half);
+        // Bounds checked in floats, so the cast (the floor, for values
+        // in [0, l)) needs no saturation handling.
+        if CHECK && !((u >= 0.0) & (v >= 0.0) & (u < self.side) & (v < self.side)) {
+            return;
+        }
+        let (u, v) = (u as i32 as usize, v as i32 as usize);
+        let z = self.sd * pd;
+        if let Some(cell) = depth.get_mut(v * self.l + u) {
+            // A min, not a branch: which point is nearer is unpredictable.
+            *cell = if z < *cell { z } else { *cell };
+        }
+    }
+
+    fn splat<const U: usize, const V: usize, const D: usize>(
+        &self,
+        points: &[[f32; 3]],
+        inside: bool,
+        depth: &mut [f32],
+    ) {
+        if inside {
+            for p in points {
+                self.splat_one::<false>((p[U], p[V], p[D]), depth);
+            }
+        } else {
+            for p in points {
+                self.splat_one::<true>((p[U], p[V], p[D]), depth);
+            }
+        }
+    }
+
+    fn splat_any(&self, [ju, jv, jd]: [usize; 3], points: &[[f32; 3]], depth: &mut [f32]) {
+        for p in points {
+            self.splat_one::<true>((p[ju], p[jv], p[jd]), depth);
+        }
+    }
+}
+
 /// Inclusive pixel bounds of the filled pixels.
 #[derive(Debug, Clone, Copy)]
 struct PixelBox {
@@ -217,7 +320,7 @@ impl PixelBox {
         v1: 0,
     };
 
-    #[inline]
+    #[cfg(test)]
     fn include(&mut self, u: usize, v: usize) {
         (self.u0, self.u1, self.v0, self.v1) =
             (self.u0.min(u), self.u1.max(u), self.v0.min(v), self.v1.max(v));
