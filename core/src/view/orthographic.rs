@@ -182,7 +182,7 @@ impl OrthoView {
             (0, 2, 1) => projection.splat::<0, 2, 1>(points_in_object, inside, &mut depth),
             _ => projection.splat_any([ju, jv, jd], points_in_object, &mut depth),
         }
-        let depth = fill_holes(&depth, l, &filled_box);
+        fill_holes(&mut depth, l, &filled_box);
         // Every surface pixel lies in the box (holes are filled inside it):
         // normalise, and sum the entropy, there only.
         let cube = l as f32 * pixel_size_m;
@@ -328,31 +328,41 @@ impl PixelBox {
 }
 
 /// One order-independent pass of the hole rule documented above, over the
-/// box of the filled pixels (nothing outside it can be filled).
-fn fill_holes(depth: &[f32], l: usize, filled: &PixelBox) -> Vec<f32> {
-    let mut out = depth.to_vec();
+/// box of the filled pixels (nothing outside it can be filled), in place:
+/// the unfilled rows above and at the current one are kept aside, the row
+/// below is not written yet, so every decision reads the unfilled buffer.
+fn fill_holes(depth: &mut [f32], l: usize, filled: &PixelBox) {
     if filled.u0 > filled.u1 || l < 3 {
-        return out;
+        return;
     }
-    for v in filled.v0.max(1)..=filled.v1.min(l - 2) {
-        for u in filled.u0.max(1)..=filled.u1.min(l - 2) {
-            if depth[v * l + u].is_finite() {
+    let (u0, u1) = (filled.u0.max(1), filled.u1.min(l - 2));
+    let (v0, v1) = (filled.v0.max(1), filled.v1.min(l - 2));
+    if u0 > u1 || v0 > v1 {
+        return;
+    }
+    let mut above = depth[(v0 - 1) * l..v0 * l].to_vec();
+    let mut current = vec![0f32; l];
+    for v in v0..=v1 {
+        current.copy_from_slice(&depth[v * l..(v + 1) * l]);
+        for u in u0..=u1 {
+            if current[u].is_finite() {
                 continue;
             }
+            let below = &depth[(v + 1) * l..(v + 2) * l];
             let mut count = 0;
             let mut nearest = f32::INFINITY;
-            for row in [v - 1, v, v + 1] {
-                for &z in &depth[row * l + u - 1..=row * l + u + 1] {
+            for row in [&above[..], &current[..], below] {
+                for &z in &row[u - 1..=u + 1] {
                     count += usize::from(z.is_finite());
                     nearest = nearest.min(z);
                 }
             }
             if count >= HOLE_FILL_MIN_NEIGHBOURS {
-                out[v * l + u] = nearest;
+                depth[v * l + u] = nearest;
             }
         }
+        std::mem::swap(&mut above, &mut current);
     }
-    out
 }
 
 #[cfg(test)]
@@ -397,6 +407,54 @@ mod tests {
         }
     }
 
+    /// The rule read literally: every decision on a copy of the unfilled buffer.
+    fn fill_holes_reference(depth: &[f32], l: usize) -> Vec<f32> {
+        let mut out = depth.to_vec();
+        for v in 1..l - 1 {
+            for u in 1..l - 1 {
+                if depth[v * l + u].is_finite() {
+                    continue;
+                }
+                let neighbours = (v - 1..=v + 1).flat_map(|y| (u - 1..=u + 1).map(move |x| depth[y * l + x]));
+                let count = neighbours.clone().filter(|z| z.is_finite()).count();
+                if count >= HOLE_FILL_MIN_NEIGHBOURS {
+                    out[v * l + u] = neighbours.fold(f32::INFINITY, f32::min);
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn in_place_hole_filling_matches_the_rule_on_random_buffers() {
+        let mut rng = crate::rng::SplitMix64::new(7);
+        for density in [0.3, 0.6, 0.8, 0.95] {
+            let l = 24;
+            let depth: Vec<f32> = (0..l * l)
+                .map(|_| {
+                    if rng.next_f64() < density {
+                        rng.next_f64() as f32
+                    } else {
+                        f32::INFINITY
+                    }
+                })
+                .collect();
+            let mut filled = PixelBox::EMPTY;
+            for (i, z) in depth.iter().enumerate() {
+                if z.is_finite() {
+                    filled.include(i % l, i / l);
+                }
+            }
+            let mut out = depth.clone();
+            fill_holes(&mut out, l, &filled);
+            let expected = fill_holes_reference(&depth, l);
+            assert_eq!(out, expected, "density {density}");
+            assert!(
+                out.iter().filter(|z| z.is_finite()).count() > depth.iter().filter(|z| z.is_finite()).count()
+            );
+        }
+    }
+
     #[test]
     fn holes_fill_only_when_surrounded() {
         let l = 5;
@@ -413,7 +471,8 @@ mod tests {
                 filled.include(u, v);
             }
         }
-        let out = fill_holes(&depth, l, &filled);
+        let mut out = depth.clone();
+        fill_holes(&mut out, l, &filled);
         assert_eq!(out[2 * l + 2], 0.02, "nearest of the 8 neighbours");
         assert!(
             out[0].is_infinite() && out[l].is_infinite(),
