@@ -431,11 +431,11 @@ fn depth_to_world(
 /// The per-column and per-row parts of every pixel's world ray and height.
 struct Rays {
     width: usize,
-    intrinsics: Intrinsics,
-    rotation: nalgebra::Matrix3<f64>,
     origin: [f32; 3],
     column_term: Vec<[f32; 3]>,
     column_height: Vec<f32>,
+    row_term: Vec<[f32; 3]>,
+    row_height: Vec<f32>,
     h0: f32,
 }
 
@@ -455,16 +455,27 @@ impl Rays {
                 ]
             })
             .collect();
+        let row_term: Vec<[f32; 3]> = (0..frame.height as usize)
+            .map(|v| {
+                let y = (v as f64 - k.cy) / k.fy;
+                [
+                    (r[(0, 1)] * y + r[(0, 2)]) as f32,
+                    (r[(1, 1)] * y + r[(1, 2)]) as f32,
+                    (r[(2, 1)] * y + r[(2, 2)]) as f32,
+                ]
+            })
+            .collect();
         let origin = [t.x as f32, t.y as f32, t.z as f32];
         let column_height = column_term.iter().map(|c| keep.height_dir(c)).collect();
+        let row_height = row_term.iter().map(|c| keep.height_dir(c)).collect();
         let h0 = keep.height_dir(&origin) + keep.above.offset;
         Self {
             width: frame.width as usize,
-            intrinsics: k,
-            rotation,
             origin,
             column_term,
             column_height,
+            row_term,
+            row_height,
             h0,
         }
     }
@@ -482,14 +493,7 @@ impl Rays {
     ) {
         let bpp = frame.encoding.bytes_per_pixel();
         let row = &frame.data[v * self.width * bpp..(v + 1) * self.width * bpp];
-        let (k, r) = (&self.intrinsics, &self.rotation);
-        let y = (v as f64 - k.cy) / k.fy;
-        let row_term = [
-            (r[(0, 1)] * y + r[(0, 2)]) as f32,
-            (r[(1, 1)] * y + r[(1, 2)]) as f32,
-            (r[(2, 1)] * y + r[(2, 2)]) as f32,
-        ];
-        let row_height = keep.height_dir(&row_term);
+        let (row_term, row_height) = (self.row_term[v], self.row_height[v]);
         for u in columns {
             let z = match frame.encoding {
                 DepthEncoding::U16Millimetres => {
