@@ -3,5 +3,5 @@
 mod entropy;
 mod policy;
 
-pub use entropy::{EntropySums, view_entropy};
+pub use entropy::{EntropySums, log2_fast, view_entropy};
 pub use policy::{ViewPolicy, select_views};
