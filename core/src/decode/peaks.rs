@@ -114,29 +114,30 @@ pub fn find_peaks(
     k: usize,
 ) -> Vec<(usize, usize, f32)> {
     let mut candidates: Vec<(usize, f32)> = Vec::new();
+    if w == 0 || h == 0 || map.len() < w * h {
+        return Vec::new();
+    }
+    // A pixel is a local maximum when it is >= the maximum of its 3 x 3
+    // window (itself included). The window maximum is separable: a
+    // horizontal max of 3, then a vertical one, each over whole rows (vector
+    // code, no per-neighbour bounds tests). Edges clamp, which only repeats
+    // pixels already in the window; `f32::max` skips NaN neighbours, as the
+    // `>` of the definition does.
+    let mut across = vec![0f32; w * h];
+    for (src, dst) in map.chunks_exact(w).zip(across.chunks_exact_mut(w)).take(h) {
+        row_max3(src, dst);
+    }
+    let mut window = vec![0f32; w];
     for v in 0..h {
-        for u in 0..w {
-            let q = map[v * w + u];
-            if q.is_nan() || q < threshold {
-                continue;
-            }
-            let mut is_max = true;
-            'neighbours: for dv in -1isize..=1 {
-                for du in -1isize..=1 {
-                    let (x, y) = (u as isize + du, v as isize + dv);
-                    if (du, dv) != (0, 0)
-                        && x >= 0
-                        && y >= 0
-                        && (x as usize) < w
-                        && (y as usize) < h
-                        && map[y as usize * w + x as usize] > q
-                    {
-                        is_max = false;
-                        break 'neighbours;
-                    }
-                }
-            }
-            if is_max {
+        let up = &across[v.saturating_sub(1) * w..][..w];
+        let mid = &across[v * w..][..w];
+        let down = &across[(v + 1).min(h - 1) * w..][..w];
+        for (((m, a), b), c) in window.iter_mut().zip(up).zip(mid).zip(down) {
+            *m = a.max(*b).max(*c);
+        }
+        for (u, (&q, &m)) in map[v * w..(v + 1) * w].iter().zip(&window).enumerate() {
+            // NaN fails both comparisons.
+            if q >= threshold && q >= m {
                 candidates.push((v * w + u, q));
             }
         }
@@ -160,9 +161,97 @@ pub fn find_peaks(
     kept
 }
 
+/// `dst[u]` = the maximum of `src[u - 1..=u + 1]`, clamped at the ends.
+fn row_max3(src: &[f32], dst: &mut [f32]) {
+    let w = src.len();
+    if w == 1 {
+        dst[0] = src[0];
+        return;
+    }
+    dst[0] = src[0].max(src[1]);
+    dst[w - 1] = src[w - 2].max(src[w - 1]);
+    for (((d, a), b), c) in dst[1..w - 1].iter_mut().zip(src).zip(&src[1..]).zip(&src[2..]) {
+        *d = a.max(*b).max(*c);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The definition read literally: >= every in-bounds 8-neighbour.
+    fn find_peaks_reference(
+        map: &[f32],
+        w: usize,
+        h: usize,
+        threshold: f32,
+        radius_px: usize,
+        k: usize,
+    ) -> Vec<(usize, usize, f32)> {
+        let mut candidates: Vec<(usize, f32)> = Vec::new();
+        for v in 0..h {
+            for u in 0..w {
+                let q = map[v * w + u];
+                if q.is_nan() || q < threshold {
+                    continue;
+                }
+                let beaten = (-1isize..=1).any(|dv| {
+                    (-1isize..=1).any(|du| {
+                        let (x, y) = (u as isize + du, v as isize + dv);
+                        (du, dv) != (0, 0)
+                            && x >= 0
+                            && y >= 0
+                            && (x as usize) < w
+                            && (y as usize) < h
+                            && map[y as usize * w + x as usize] > q
+                    })
+                });
+                if !beaten {
+                    candidates.push((v * w + u, q));
+                }
+            }
+        }
+        candidates.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+        let r2 = (radius_px * radius_px) as isize;
+        let mut kept: Vec<(usize, usize, f32)> = Vec::new();
+        for (i, q) in candidates {
+            if kept.len() >= k {
+                break;
+            }
+            let (u, v) = ((i % w) as isize, (i / w) as isize);
+            if !kept
+                .iter()
+                .any(|&(ku, kv, _)| (ku as isize - u).pow(2) + (kv as isize - v).pow(2) <= r2)
+            {
+                kept.push((u as usize, v as usize, q));
+            }
+        }
+        kept
+    }
+
+    /// Random maps with plateaus (values on a coarse grid), NaNs, thin maps
+    /// and all thresholds: the window-maximum search finds what the
+    /// definition finds.
+    #[test]
+    fn window_maximum_peaks_equal_the_definition() {
+        let mut rng = crate::rng::SplitMix64::new(11);
+        for trial in 0..300 {
+            let (w, h) = (1 + rng.below(20), 1 + rng.below(20));
+            let map: Vec<f32> = (0..w * h)
+                .map(|_| match rng.below(20) {
+                    0 => f32::NAN,
+                    _ => rng.below(6) as f32 / 5.0,
+                })
+                .collect();
+            for threshold in [0.0, 0.4, 1.0] {
+                assert_eq!(
+                    find_peaks(&map, w, h, threshold, 2, 5),
+                    find_peaks_reference(&map, w, h, threshold, 2, 5),
+                    "trial {trial}, {w} x {h}, threshold {threshold}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn plateau_neighbours_are_suppressed_and_order_is_by_value() {
