@@ -113,7 +113,12 @@ pub fn find_peaks(
     radius_px: usize,
     k: usize,
 ) -> Vec<(usize, usize, f32)> {
-    let mut candidates: Vec<(usize, f32)> = Vec::new();
+    suppress(local_maxima(map, w, h, threshold), w, radius_px, k)
+}
+
+/// Pixels `(row-major index, value)` at or above `threshold` that are >=
+/// their 8 neighbours, in row-major order.
+fn local_maxima(map: &[f32], w: usize, h: usize, threshold: f32) -> Vec<(usize, f32)> {
     if w == 0 || h == 0 || map.len() < w * h {
         return Vec::new();
     }
@@ -128,6 +133,7 @@ pub fn find_peaks(
         row_max3(src, dst);
     }
     let mut window = vec![0f32; w];
+    let mut candidates = Vec::new();
     for v in 0..h {
         let up = &across[v.saturating_sub(1) * w..][..w];
         let mid = &across[v * w..][..w];
@@ -142,6 +148,17 @@ pub fn find_peaks(
             }
         }
     }
+    candidates
+}
+
+/// Best first (ties by index), dropping any candidate within `radius_px` of
+/// a better kept one, up to `k`.
+fn suppress(
+    mut candidates: Vec<(usize, f32)>,
+    w: usize,
+    radius_px: usize,
+    k: usize,
+) -> Vec<(usize, usize, f32)> {
     candidates.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
     let r2 = (radius_px * radius_px) as isize;
     let mut kept: Vec<(usize, usize, f32)> = Vec::new();
@@ -180,14 +197,7 @@ mod tests {
     use super::*;
 
     /// The definition read literally: >= every in-bounds 8-neighbour.
-    fn find_peaks_reference(
-        map: &[f32],
-        w: usize,
-        h: usize,
-        threshold: f32,
-        radius_px: usize,
-        k: usize,
-    ) -> Vec<(usize, usize, f32)> {
+    fn local_maxima_reference(map: &[f32], w: usize, h: usize, threshold: f32) -> Vec<(usize, f32)> {
         let mut candidates: Vec<(usize, f32)> = Vec::new();
         for v in 0..h {
             for u in 0..w {
@@ -211,22 +221,7 @@ mod tests {
                 }
             }
         }
-        candidates.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
-        let r2 = (radius_px * radius_px) as isize;
-        let mut kept: Vec<(usize, usize, f32)> = Vec::new();
-        for (i, q) in candidates {
-            if kept.len() >= k {
-                break;
-            }
-            let (u, v) = ((i % w) as isize, (i / w) as isize);
-            if !kept
-                .iter()
-                .any(|&(ku, kv, _)| (ku as isize - u).pow(2) + (kv as isize - v).pow(2) <= r2)
-            {
-                kept.push((u as usize, v as usize, q));
-            }
-        }
-        kept
+        candidates
     }
 
     /// Random maps with plateaus (values on a coarse grid), NaNs, thin maps
@@ -244,10 +239,13 @@ mod tests {
                 })
                 .collect();
             for threshold in [0.0, 0.4, 1.0] {
+                let expected = local_maxima_reference(&map, w, h, threshold);
+                let context = format!("trial {trial}, {w} x {h}, threshold {threshold}");
+                assert_eq!(local_maxima(&map, w, h, threshold), expected, "{context}");
                 assert_eq!(
                     find_peaks(&map, w, h, threshold, 2, 5),
-                    find_peaks_reference(&map, w, h, threshold, 2, 5),
-                    "trial {trial}, {w} x {h}, threshold {threshold}"
+                    suppress(expected, w, 2, 5),
+                    "{context}"
                 );
             }
         }
