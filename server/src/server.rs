@@ -51,7 +51,8 @@ impl RunningServer {
 /// Loads the model named by `settings` and starts the server.
 pub async fn start(settings: Settings) -> Result<RunningServer> {
     let model = settings.model.clone();
-    let net = tokio::task::spawn_blocking(move || backend::load(&model))
+    let batch_views = settings.batching.max_batch_views;
+    let net = tokio::task::spawn_blocking(move || backend::load(&model, batch_views))
         .await
         .map_err(|e| Error::Startup(format!("loading the model: {e}")))??;
     start_with_net(settings, net).await

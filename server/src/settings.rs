@@ -27,6 +27,19 @@ pub enum Device {
     Cuda,
 }
 
+/// How cuDNN picks convolution algorithms under the CUDA execution provider.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum ConvSearch {
+    /// Time every algorithm once per input shape, keep the fastest (ONNX
+    /// Runtime's default; the server pays it at start-up, see `backend`).
+    Exhaustive,
+    /// cuDNN's heuristics: no timing runs, maybe slower kernels.
+    Heuristic,
+    /// cuDNN's default algorithm.
+    Default,
+}
+
 /// The model and its runtime.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -44,6 +57,8 @@ pub struct ModelSettings {
     /// Let ONNX Runtime's threads spin between calls (lower latency when the
     /// cores are otherwise idle; steals them from the CPU stages when not).
     pub spin_wait: bool,
+    /// cuDNN's convolution algorithm search (`device = cuda` only).
+    pub cuda_conv_search: ConvSearch,
 }
 
 impl Default for ModelSettings {
@@ -55,6 +70,7 @@ impl Default for ModelSettings {
             device: Device::Cpu,
             intra_threads: 1,
             spin_wait: true,
+            cuda_conv_search: ConvSearch::Exhaustive,
         }
     }
 }
@@ -196,6 +212,9 @@ pub struct Overrides {
     /// Let ONNX Runtime's threads spin between calls.
     #[arg(long, env = "MVGRASP_SPIN_WAIT")]
     pub spin_wait: Option<bool>,
+    /// cuDNN's convolution algorithm search under `--device cuda`.
+    #[arg(long, env = "MVGRASP_CUDA_CONV_SEARCH", value_enum)]
+    pub cuda_conv_search: Option<ConvSearch>,
     /// Most views per network call.
     #[arg(long, env = "MVGRASP_MAX_BATCH_VIEWS")]
     pub max_batch_views: Option<usize>,
@@ -253,6 +272,9 @@ impl Settings {
         }
         if let Some(v) = o.spin_wait {
             self.model.spin_wait = v;
+        }
+        if let Some(v) = o.cuda_conv_search {
+            self.model.cuda_conv_search = v;
         }
         if let Some(v) = o.max_batch_views {
             self.batching.max_batch_views = v;
@@ -351,6 +373,19 @@ mod tests {
         assert_eq!(s.batching.max_wait_ms, 5.0);
         assert_eq!(s.metrics_listen, None);
         s.validate().unwrap();
+    }
+
+    #[test]
+    fn the_cuda_search_is_read_from_file_and_flags() {
+        let mut s = Settings::from_toml("[model]\ncuda_conv_search = \"heuristic\"\n").unwrap();
+        assert_eq!(s.model.cuda_conv_search, ConvSearch::Heuristic);
+        s.apply(&Overrides {
+            cuda_conv_search: Some(ConvSearch::Default),
+            ..Default::default()
+        });
+        assert_eq!(s.model.cuda_conv_search, ConvSearch::Default);
+        let err = Settings::from_toml("[model]\ncuda_conv_search = \"fastest\"\n").unwrap_err();
+        assert!(err.to_string().contains("fastest"), "{err}");
     }
 
     #[test]

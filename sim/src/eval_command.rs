@@ -26,7 +26,8 @@ pub enum Planning<'a> {
 }
 
 fn load_net(model: &ModelSettings) -> anyhow::Result<Box<dyn GraspNet + Send>> {
-    Ok(mvgrasp_server::backend::load(model)
+    let batch_views = mvgrasp_server::settings::BatchSettings::default().max_batch_views;
+    Ok(mvgrasp_server::backend::load(model, batch_views)
         .with_context(|| format!("loading {}", model.path.display()))?
         .net)
 }

@@ -18,7 +18,7 @@ const FLOOR: f64 = 0.3;
 fn the_shipped_model_clears_isolated_objects_in_physics() {
     let mut model = settings(BackendKind::Onnx).model;
     model.path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models/mvgrasp.onnx");
-    let mut net = backend::load(&model).expect("models/mvgrasp.onnx loads").net;
+    let mut net = backend::load(&model, 8).expect("models/mvgrasp.onnx loads").net;
     let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).unwrap();
     let setting = Setting::parse("all:0.1").unwrap();
     let config = EpisodeConfig::default();

@@ -21,7 +21,7 @@ fn expected_quality(image: &[f32], l: usize, u: usize, v: usize) -> f32 {
 
 #[test]
 fn tiny_model_matches_its_closed_form_through_ort() {
-    let mut net = OnnxNet::load(&settings(BackendKind::Onnx).model).expect("tiny.onnx loads");
+    let mut net = OnnxNet::load(&settings(BackendKind::Onnx).model, 8).expect("tiny.onnx loads");
     let contract = net.contract().clone();
     assert_eq!(contract.model_version, "fixture-tiny-1");
     assert_eq!(contract.input_size_px, 96);
@@ -61,7 +61,7 @@ fn tiny_model_matches_its_closed_form_through_ort() {
 fn a_model_without_the_contract_is_refused_by_name() {
     let mut s = settings(BackendKind::Onnx).model;
     s.path = "does/not/exist.onnx".into();
-    let err = OnnxNet::load(&s).unwrap_err().to_string();
+    let err = OnnxNet::load(&s, 8).unwrap_err().to_string();
     assert!(err.contains("does/not/exist.onnx"), "{err}");
 }
 
@@ -102,6 +102,34 @@ fn read_npy_f32(path: &std::path::Path) -> (Vec<usize>, Vec<f32>) {
     (shape, values)
 }
 
+/// Padding a batch (what the CUDA backend does to keep one input shape)
+/// changes none of the real views' maps and returns only theirs.
+#[test]
+fn padded_batches_give_the_same_maps() {
+    let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut model = settings(BackendKind::Onnx).model;
+    model.path = repo.join("models/mvgrasp.onnx");
+    let mut net = OnnxNet::load(&model, 8).expect("models/mvgrasp.onnx loads");
+    let l = net.contract().input_size_px;
+    let (_, input) = read_npy_f32(&repo.join("models/golden/input.npy"));
+    let mut batch = ViewBatch::new(l);
+    for view in input.chunks_exact(l * l) {
+        batch.push(view);
+    }
+    let plain = net.infer(&batch).expect("inference");
+    net.pad_batches_to(7);
+    let padded = net.infer(&batch).expect("padded inference");
+    padded.check_matches(&batch).unwrap();
+    assert_eq!(padded.len, batch.len);
+    let worst = plain
+        .data
+        .iter()
+        .zip(&padded.data)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(worst < 1e-5, "padding changed the maps by {worst}");
+}
+
 /// The shipped model gives, through `ort`, what PyTorch gave when it was
 /// exported (models/golden, written by `mvgrasp_train.export --golden`):
 /// any drift between training and serving fails here.
@@ -110,7 +138,7 @@ fn golden_vectors_match_through_ort() {
     let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let mut model = settings(BackendKind::Onnx).model;
     model.path = repo.join("models/mvgrasp.onnx");
-    let mut net = OnnxNet::load(&model).expect("models/mvgrasp.onnx loads");
+    let mut net = OnnxNet::load(&model, 8).expect("models/mvgrasp.onnx loads");
     let contract = net.contract().clone();
     let l = contract.input_size_px;
     let (in_shape, input) = read_npy_f32(&repo.join("models/golden/input.npy"));

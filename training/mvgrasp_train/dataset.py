@@ -36,7 +36,15 @@ class Dataset:
 
 
 def load(path, mmap=False):
-    """Every shard of the dataset at `path`, maps reordered to CHANNELS."""
+    """Every shard of the dataset at `path`, maps reordered to CHANNELS.
+
+    `path` may name several datasets, comma-separated (e.g. chunks of one
+    `sim datagen` run made with disjoint seeds); they are concatenated in
+    order and must share the contract, gripper and data version.
+    """
+    paths = [p for p in str(path).split(",") if p]
+    if len(paths) > 1:
+        return merge([load(p, mmap) for p in paths], paths)
     with open(os.path.join(path, "manifest.json")) as f:
         manifest = json.load(f)
     if manifest.get("format_version") != FORMAT_VERSION:
@@ -62,6 +70,24 @@ def load(path, mmap=False):
         maps = maps[:, order]
     grasps = np.concatenate(grasps) if grasps else np.zeros((0, 6), np.float32)
     return Dataset(np.concatenate(views), maps, grasps, meta, manifest)
+
+
+def merge(parts, names):
+    """One Dataset of `parts` in order; refuses parts whose contract, gripper or data version differ."""
+    first = parts[0].manifest
+    for part, name in zip(parts[1:], names[1:]):
+        for key in ("contract", "gripper", "data_version", "format_version"):
+            if part.manifest.get(key) != first.get(key):
+                raise ValueError(f"{name}: {key} {part.manifest.get(key)!r} differs from {names[0]}'s {first.get(key)!r}")
+    offsets = np.cumsum([0] + [len(p.meta) for p in parts[:-1]])
+    grasps = [p.grasps + np.array([o, 0, 0, 0, 0, 0], np.float32) for p, o in zip(parts, offsets)]
+    manifest = dict(first)
+    manifest.update(views=sum(p.manifest["views"] for p in parts),
+                    views_with_positives=sum(p.manifest["views_with_positives"] for p in parts),
+                    failed_scenes=[s for p in parts for s in p.manifest.get("failed_scenes", [])],
+                    parts=[{"path": n, "views": p.manifest["views"]} for p, n in zip(parts, names)])
+    return Dataset(np.concatenate([p.views for p in parts]), np.concatenate([p.maps for p in parts]),
+                   np.concatenate(grasps), [m for p in parts for m in p.meta], manifest)
 
 
 def split_by_instance(meta, eval_share=0.2, seed=0):

@@ -45,11 +45,13 @@ def main(argv):
             ax_acc.axvline(x, color=colour, linestyle=":", linewidth=0.8)
         epochs = [e["epoch"] for e in log]
         ax_loss.plot(epochs, [e["train_loss"] for e in log], "-", color=colour, label=f"{label} train")
-        ax_loss.plot(epochs, [e["eval_loss"] for e in log], "--", color=colour, label=f"{label} held-out")
-        ax_acc.plot(epochs, [100 * e["eval_accuracy"] for e in log], "-o", color=colour, label=label)
+        evaluated = [e for e in log if "eval_accuracy" in e]  # runs may evaluate every N epochs
+        at = [e["epoch"] for e in evaluated]
+        ax_loss.plot(at, [e["eval_loss"] for e in evaluated], "--", color=colour, label=f"{label} held-out")
+        ax_acc.plot(at, [100 * e["eval_accuracy"] for e in evaluated], "-o", color=colour, label=label)
         for view, style in zip(("top", "front", "side"), (":", (0, (1, 3)), (0, (3, 3)))):
-            values = [100 * e["eval_per_view"].get(view, float("nan")) for e in log]
-            ax_acc.plot(epochs, values, linestyle=style, color=colour, alpha=0.6, label=f"{label} {view}")
+            values = [100 * e["eval_per_view"].get(view, float("nan")) for e in evaluated]
+            ax_acc.plot(at, values, linestyle=style, color=colour, alpha=0.6, label=f"{label} {view}")
     ax_loss.set(xlabel="epoch", ylabel="MSE (4 maps)", title="loss", yscale="log")
     ax_acc.axhline(93, color="grey", lw=0.8)
     ax_acc.text(1, 93.5, "paper: 93%", color="grey", fontsize=8)

@@ -1,11 +1,17 @@
 """Trains a grasp network on a `sim datagen` dataset.
 
     python3 -m mvgrasp_train.train --data DATASET --out RUN_DIR \
-        [--architecture paper|narrow] [--epochs 8] [--minutes 60] [--batch 32]
+        [--architecture paper|narrow] [--epochs 8] [--minutes 60] [--batch 32] \
+        [--device cuda] [--schedule cosine]
 
 Splits 80/20 by object instance, trains with MSE on the four maps and Adam
 (lr 1e-3; `--init RUN --lr 1e-4` continues a run as a second, lower-rate stage), augments each training view (augment.py), and after every epoch
-evaluates the paper's grasp accuracy on the held-out instances. Writes
+evaluates the paper's grasp accuracy on the held-out instances. On a GPU
+(`--device cuda`) the training views sit in device memory and whole batches
+are augmented there (augment_torch.py); on the CPU each view is augmented
+with numpy (augment.py) unless `--augment torch`. `--schedule cosine` decays the rate to 2% of
+`--lr` over the run: over `--epochs`, or over `--minutes` when that comes
+first (then the schedule follows the clock). Writes
 RUN_DIR/log.jsonl (one line per epoch), RUN_DIR/model.pt (the last epoch's
 weights: no model is picked on the held-out set) and RUN_DIR/eval.json.
 """
@@ -19,7 +25,7 @@ import time
 import numpy as np
 import torch
 
-from . import augment, dataset, metric
+from . import augment, augment_torch, dataset, metric
 from .model import ARCHITECTURES, GraspNet
 
 
@@ -33,19 +39,20 @@ def progress(done, total, started, extra=""):
     sys.stderr.flush()
 
 
-def predict(model, views, batch=128):
+def predict(model, views, batch=128, device="cpu"):
     model.eval()
     out = []
     with torch.no_grad():
         for i in range(0, len(views), batch):
-            out.append(model(torch.from_numpy(np.ascontiguousarray(views[i:i + batch]))).numpy())
+            x = torch.from_numpy(np.ascontiguousarray(views[i:i + batch])).to(device)
+            out.append(model(x).cpu().numpy())
     return np.concatenate(out) if out else np.zeros((0, 4) + views.shape[2:], np.float32)
 
 
-def evaluate(model, ds, indices, batch=128):
+def evaluate(model, ds, indices, batch=128, device="cpu"):
     """Held-out MSE and the paper's accuracy on views `indices`."""
     indices = np.asarray(indices)
-    pred = predict(model, ds.views[indices], batch)
+    pred = predict(model, ds.views[indices], batch, device)
     loss = float(np.mean((pred - ds.maps[indices]) ** 2))
     result = metric.evaluate(pred, ds, indices)
     result["loss"] = loss
@@ -65,6 +72,10 @@ def main(argv=None):
     p.add_argument("--eval-views", type=int, default=1500, help="held-out views evaluated per epoch (all at the end)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--device", default="cpu")
+    p.add_argument("--augment", choices=("auto", "numpy", "torch"), default="auto",
+                   help="numpy: per view on the CPU; torch: whole batches on --device, data held there (auto: torch off the CPU)")
+    p.add_argument("--schedule", choices=("constant", "cosine"), default="constant")
+    p.add_argument("--eval-every", type=int, default=1, help="evaluate the held-out sample every N epochs")
     p.add_argument("--init", help="start from this run's model.pt (e.g. a second stage at a lower --lr)")
     p.add_argument("--hold-out-families", default="",
                    help="comma-separated shape families never trained on (evaluated apart)")
@@ -107,45 +118,68 @@ def main(argv=None):
                   contract=ds.contract, gripper=ds.manifest["gripper"])
     with open(os.path.join(args.out, "config.json"), "w") as f:
         json.dump(config, f, indent=1)
+    on_device = args.augment == "torch" or (args.augment == "auto" and device.type != "cpu")
+    if on_device:
+        train_views = torch.from_numpy(ds.views[train_idx]).to(device)
+        train_maps = torch.from_numpy(ds.maps[train_idx]).to(device)
+        generator = torch.Generator(device=device)
+        generator.manual_seed(args.seed)
     log = open(os.path.join(args.out, "log.jsonl"), "w")
     started = time.time()
+    steps = len(train_idx) // args.batch
+
+    def progress_share(epoch, step):
+        share = ((epoch - 1) * steps + step) / max(args.epochs * steps, 1)
+        if args.minutes:
+            share = max(share, (time.time() - started) / (args.minutes * 60))
+        return min(share, 1.0)
+
     for epoch in range(1, args.epochs + 1):
         model.train()
-        order = rng.permutation(train_idx)
+        order = rng.permutation(len(train_idx) if on_device else train_idx)
         losses, t0 = [], time.time()
-        steps = len(order) // args.batch
         for step in range(steps):
             batch = order[step * args.batch:(step + 1) * args.batch]
-            pairs = [augment.augment(ds.views[i], ds.maps[i], rng) for i in batch]
-            x = torch.from_numpy(np.stack([a for a, _ in pairs])).to(device)
-            y = torch.from_numpy(np.stack([b for _, b in pairs])).to(device)
+            if on_device:
+                picked = torch.from_numpy(batch).to(device)
+                x, y = augment_torch.augment(train_views[picked], train_maps[picked], generator)
+            else:
+                pairs = [augment.augment(ds.views[i], ds.maps[i], rng) for i in batch]
+                x = torch.from_numpy(np.stack([a for a, _ in pairs])).to(device)
+                y = torch.from_numpy(np.stack([b for _, b in pairs])).to(device)
+            if args.schedule == "cosine":
+                share = progress_share(epoch, step)
+                for group in optimiser.param_groups:
+                    group["lr"] = args.lr * (0.02 + 0.98 * 0.5 * (1 + np.cos(np.pi * share)))
             optimiser.zero_grad()
             loss = torch.mean((model(x) - y) ** 2)
             loss.backward()
             optimiser.step()
-            losses.append(loss.item())
-            if step % 10 == 0 or step == steps - 1:
-                progress(step + 1, steps, t0, f"epoch {epoch} loss {np.mean(losses[-50:]):.5f}")
+            losses.append(loss.detach())
+            if step % 50 == 0 or step == steps - 1:
+                recent = float(torch.stack(losses[-50:]).mean())
+                progress(step + 1, steps, t0, f"epoch {epoch} loss {recent:.5f}")
         sys.stderr.write("\n")
-        model.cpu()
-        result = evaluate(model, ds, eval_sample)
-        model.to(device)
-        entry = {"epoch": epoch, "train_loss": float(np.mean(losses)), "eval_loss": result["loss"],
-                 "eval_accuracy": result["accuracy"],
-                 "eval_per_view": {k: v["accuracy"] for k, v in result["per_view"].items()},
-                 "epoch_s": time.time() - t0, "elapsed_s": time.time() - started}
+        done = args.minutes and time.time() - started > args.minutes * 60
+        entry = {"epoch": epoch, "train_loss": float(torch.stack(losses).mean()),
+                 "lr": optimiser.param_groups[0]["lr"], "epoch_s": time.time() - t0}
+        if epoch % args.eval_every == 0 or done or epoch == args.epochs:
+            result = evaluate(model, ds, eval_sample, device=device)
+            entry.update(eval_loss=result["loss"], eval_accuracy=result["accuracy"],
+                         eval_per_view={k: v["accuracy"] for k, v in result["per_view"].items()})
+        entry["elapsed_s"] = time.time() - started
         log.write(json.dumps(entry) + "\n")
         log.flush()
         print(json.dumps(entry), file=sys.stderr)
-        if args.minutes and time.time() - started > args.minutes * 60:
+        if done:
             print(f"time budget of {args.minutes} min reached after epoch {epoch}", file=sys.stderr)
             break
-    model.cpu()
-    torch.save({"architecture": args.architecture, "state_dict": model.state_dict(), "epochs": epoch,
+    state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
+    torch.save({"architecture": args.architecture, "state_dict": state, "epochs": epoch,
                 "train_s": time.time() - started}, os.path.join(args.out, "model.pt"))
-    final = evaluate(model, ds, eval_idx)
+    final = evaluate(model, ds, eval_idx, device=device)
     if family_idx:
-        final["unseen_families"] = {"families": sorted(unseen), **evaluate(model, ds, family_idx)}
+        final["unseen_families"] = {"families": sorted(unseen), **evaluate(model, ds, family_idx, device=device)}
     final.update(epochs=epoch, train_s=time.time() - started)
     with open(os.path.join(args.out, "eval.json"), "w") as f:
         json.dump(final, f, indent=1)

@@ -167,6 +167,26 @@ class Reader(unittest.TestCase):
             with self.assertRaisesRegex(ValueError, "format_version 1"):
                 dataset.load(root)
 
+    def test_comma_separated_datasets_are_concatenated_with_shifted_grasp_indices(self):
+        with tempfile.TemporaryDirectory() as a, tempfile.TemporaryDirectory() as b:
+            write_dataset(a)
+            write_dataset(b)
+            ds = dataset.load(f"{a},{b}")
+            self.assertEqual(ds.views.shape, (6, 1, 8, 8))
+            self.assertEqual(ds.manifest["views"], 6)
+            self.assertEqual(ds.manifest["views_with_positives"], 4)
+            self.assertEqual(dataset.check(ds), [])
+            self.assertEqual([len(ds.grasps_of(i)) for i in range(6)], [1, 0, 1, 1, 0, 1])
+            np.testing.assert_array_equal(ds.grasps_of(5)[:, :2], [[3, 4]])
+            self.assertEqual(metric.evaluate(ds.maps, ds, range(6))["accuracy"], 1.0)
+
+    def test_datasets_with_other_contracts_are_not_merged(self):
+        with tempfile.TemporaryDirectory() as a, tempfile.TemporaryDirectory() as b:
+            write_dataset(a)
+            write_dataset(b, l=12)
+            with self.assertRaisesRegex(ValueError, "contract"):
+                dataset.load(f"{a},{b}")
+
     def test_split_keeps_instances_whole_and_is_about_80_20(self):
         meta = [{"instance": f"{i // 3}:0"} for i in range(3000)]
         train, held = dataset.split_by_instance(meta)

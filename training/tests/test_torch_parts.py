@@ -19,6 +19,57 @@ REASON = f"needs {', '.join(MISSING)} (not installed; CI does not install PyTorc
 
 
 @unittest.skipIf(MISSING, REASON)
+class BatchAugmentation(unittest.TestCase):
+    """augment_torch.py must do what augment.py does, to the bit, for the same draws."""
+
+    def batch(self, n=8, l=24, seed=0):
+        rng = np.random.default_rng(seed)
+        views = np.where(rng.random((n, 1, l, l)) < 0.5, rng.uniform(0.2, 0.9, (n, 1, l, l)), 0).astype(np.float32)
+        maps = rng.normal(size=(n, 4, l, l)).astype(np.float32)
+        return views, maps
+
+    def test_symmetries_and_rescale_equal_the_numpy_ones(self):
+        import torch
+        from mvgrasp_train import augment, augment_torch
+        views, maps = self.batch()
+        k = np.arange(8)
+        factors = np.array([0.95, 1.05, 1.0, 0.97, 1.03, 0.951, 1.049, 1.011])
+        got_v, got_m = augment_torch.symmetry(torch.from_numpy(views), torch.from_numpy(maps), torch.from_numpy(k))
+        got_v, got_m = augment_torch.rescale(got_v, got_m, torch.from_numpy(factors))
+        for i in range(8):
+            want_v, want_m = augment.symmetry(views[i], maps[i], int(k[i]))
+            want_v, want_m = augment.rescale(want_v, want_m, float(factors[i]))
+            np.testing.assert_array_equal(got_v[i].numpy(), want_v)
+            np.testing.assert_array_equal(got_m[i].numpy(), want_m)
+
+    def test_corruption_touches_only_the_surface_and_stays_in_range(self):
+        import torch
+        from mvgrasp_train import augment_torch
+        views, maps = self.batch(n=64)
+        generator = torch.Generator().manual_seed(1)
+        out = augment_torch.corrupt(torch.from_numpy(views), generator).numpy()
+        surface = views > 0
+        self.assertTrue(np.all(out[~surface] == 0))
+        self.assertTrue(np.all((out >= 0) & (out <= 1)))
+        moved = np.abs(out - views)[surface & (out > 0)]
+        self.assertGreater(moved.mean(), 0.003)  # the 1 cm noise is there
+        dropped = np.mean(out[surface] == 0)
+        self.assertGreater(dropped, 0.005)  # about 2% dropout
+        self.assertLess(dropped, 0.05)
+
+    def test_augment_keeps_views_and_targets_paired(self):
+        import torch
+        from mvgrasp_train import augment_torch
+        views, maps = self.batch(n=32)
+        maps[:, 0] = (views[:, 0] > 0) * 0.7  # quality painted exactly on the surface
+        generator = torch.Generator().manual_seed(2)
+        v, m = augment_torch.augment(torch.from_numpy(views), torch.from_numpy(maps), generator)
+        # Dropout may empty a surface pixel of the view, never the reverse.
+        self.assertTrue(bool(((v[:, 0] > 0) <= (m[:, 0] > 0)).all()))
+        self.assertTrue(bool((m[:, 0] > 0).any()))
+
+
+@unittest.skipIf(MISSING, REASON)
 class Network(unittest.TestCase):
     def setUp(self):
         import torch

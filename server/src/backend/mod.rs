@@ -28,11 +28,13 @@ impl std::fmt::Debug for LoadedNet {
     }
 }
 
-/// Loads the backend that `settings` names.
-pub fn load(settings: &ModelSettings) -> Result<LoadedNet> {
+/// Loads the backend that `settings` names. `batch_views` is the most views
+/// the batcher puts in one network call (the CUDA backend runs every call at
+/// that size, see [`OnnxNet::load`]).
+pub fn load(settings: &ModelSettings, batch_views: usize) -> Result<LoadedNet> {
     match settings.backend {
         BackendKind::Onnx => {
-            let net = OnnxNet::load(settings)?;
+            let net = OnnxNet::load(settings, batch_views)?;
             let backend = net.provider();
             Ok(LoadedNet {
                 net: Box::new(net),

@@ -10,7 +10,7 @@ use ort::{environment::Environment, session::Session, value::TensorRef};
 
 use crate::{
     error::{Error, Result},
-    settings::{Device, ModelSettings},
+    settings::{ConvSearch, Device, ModelSettings},
 };
 
 /// ONNX Runtime can be loaded once per process; the first library wins.
@@ -50,6 +50,8 @@ pub struct OnnxNet {
     session: Session,
     contract: ModelContract,
     provider: &'static str,
+    /// Under CUDA, every batch is padded to this many views (0: no padding).
+    fixed_batch: usize,
 }
 
 impl std::fmt::Debug for OnnxNet {
@@ -63,7 +65,16 @@ impl std::fmt::Debug for OnnxNet {
 
 impl OnnxNet {
     /// Loads the model named by `settings`, reading its contract from the metadata.
-    pub fn load(settings: &ModelSettings) -> Result<Self> {
+    ///
+    /// Under the CUDA provider every batch runs padded to `batch_views` views
+    /// (a larger single request runs at its own size), and that size is run
+    /// once here. Measured on an H100 (BENCHMARKS.md): a network call of up
+    /// to 64 views takes under 2 ms, but each change of the input's batch
+    /// size cost about as much as cuDNN's algorithm search for a new shape
+    /// (185-270 ms exhaustive, about 40 ms heuristic, 9-16 ms default).
+    /// With 16 clients and unpadded (or power-of-two) batch sizes that
+    /// dominated: 65 calls/s. One fixed shape never changes.
+    pub fn load(settings: &ModelSettings, batch_views: usize) -> Result<Self> {
         let env = environment(&onnxruntime_library(settings))?;
         let startup = |what: &str, e: &dyn std::fmt::Display| Error::Startup(format!("{what}: {e}"));
         let mut builder = Session::builder(env)
@@ -79,7 +90,7 @@ impl OnnxNet {
             .map_err(|e| startup("spin setting", &e))?;
         let mut provider = "onnxruntime-cpu";
         if settings.device == Device::Cuda {
-            (builder, provider) = with_cuda(builder);
+            (builder, provider) = with_cuda(builder, settings.cuda_conv_search);
         }
         let path = &settings.path;
         let session = builder
@@ -99,11 +110,56 @@ impl OnnxNet {
                 session.outputs().len()
             )));
         }
-        Ok(Self {
+        let mut net = Self {
             session,
             contract,
             provider,
-        })
+            fixed_batch: if provider == "onnxruntime-cuda" {
+                batch_views.max(1)
+            } else {
+                0
+            },
+        };
+        if net.fixed_batch > 0 {
+            net.warm_up()?;
+        }
+        Ok(net)
+    }
+
+    /// Runs the fixed batch size once, so that cuDNN's algorithm search
+    /// happens before the first request, then a few more times to log its cost.
+    fn warm_up(&mut self) -> Result<()> {
+        const TIMED_RUNS: usize = 5;
+        let l = self.contract.input_size_px;
+        let len = self.fixed_batch;
+        let batch = ViewBatch {
+            size_px: l,
+            len,
+            data: vec![0.0; len * l * l],
+        };
+        let mut ms = Vec::with_capacity(TIMED_RUNS + 1);
+        for _ in 0..=TIMED_RUNS {
+            let t0 = std::time::Instant::now();
+            self.infer(&batch)
+                .map_err(|e| Error::Startup(format!("warming up a batch of {len} views: {e}")))?;
+            ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        }
+        let first = ms.remove(0);
+        ms.sort_by(f64::total_cmp);
+        tracing::info!(
+            views = len,
+            first_ms = first,
+            median_ms = ms[ms.len() / 2],
+            "CUDA warm-up"
+        );
+        Ok(())
+    }
+
+    /// Pads every batch to at least `views` views (0: never), dropping the
+    /// padding's maps. `load` sets this under CUDA; public so that tests can
+    /// check the padding on the CPU provider.
+    pub fn pad_batches_to(&mut self, views: usize) {
+        self.fixed_batch = views;
     }
 
     /// `onnxruntime-cpu` or `onnxruntime-cuda`.
@@ -115,9 +171,14 @@ impl OnnxNet {
 #[cfg(feature = "cuda")]
 fn with_cuda(
     builder: ort::session::builder::SessionBuilder,
+    search: ConvSearch,
 ) -> (ort::session::builder::SessionBuilder, &'static str) {
-    use ort::ep::ExecutionProvider;
-    let cuda = ort::ep::CUDA::default();
+    use ort::ep::{ExecutionProvider, cuda::ConvAlgorithmSearch};
+    let cuda = ort::ep::CUDA::default().with_conv_algorithm_search(match search {
+        ConvSearch::Exhaustive => ConvAlgorithmSearch::Exhaustive,
+        ConvSearch::Heuristic => ConvAlgorithmSearch::Heuristic,
+        ConvSearch::Default => ConvAlgorithmSearch::Default,
+    });
     match ort::ep::CUDA::is_available() {
         Ok(true) => {}
         Ok(false) => {
@@ -141,6 +202,7 @@ fn with_cuda(
 #[cfg(not(feature = "cuda"))]
 fn with_cuda(
     builder: ort::session::builder::SessionBuilder,
+    _search: ConvSearch,
 ) -> (ort::session::builder::SessionBuilder, &'static str) {
     tracing::warn!("device = cuda, but this server was built without the `cuda` feature; running on the CPU");
     (builder, "onnxruntime-cpu")
@@ -154,7 +216,18 @@ impl GraspNet for OnnxNet {
     fn infer(&mut self, batch: &ViewBatch) -> mvgrasp_core::Result<GraspMaps> {
         let l = batch.size_px;
         let backend = |what: &str, e: &dyn std::fmt::Display| CoreError::Backend(format!("{what}: {e}"));
-        let input = TensorRef::from_array_view(([batch.len, 1, l, l], batch.data.as_slice()))
+        let run_len = batch.len.max(self.fixed_batch);
+        let padded;
+        let data = if run_len > batch.len {
+            let mut v = Vec::with_capacity(run_len * l * l);
+            v.extend_from_slice(&batch.data);
+            v.resize(run_len * l * l, 0.0);
+            padded = v;
+            padded.as_slice()
+        } else {
+            batch.data.as_slice()
+        };
+        let input = TensorRef::from_array_view(([run_len, 1, l, l], data))
             .map_err(|e| backend("input tensor", &e))?;
         let outputs = self
             .session
@@ -163,7 +236,7 @@ impl GraspNet for OnnxNet {
         let (shape, data) = outputs[0]
             .try_extract_tensor::<f32>()
             .map_err(|e| backend("output tensor", &e))?;
-        let expected = [batch.len as i64, 4, l as i64, l as i64];
+        let expected = [run_len as i64, 4, l as i64, l as i64];
         if shape.as_ref() != expected {
             return Err(CoreError::Backend(format!(
                 "output shape {:?}, expected {expected:?}",
@@ -173,7 +246,7 @@ impl GraspNet for OnnxNet {
         Ok(GraspMaps {
             size_px: l,
             len: batch.len,
-            data: data.to_vec(),
+            data: data[..batch.len * 4 * l * l].to_vec(),
         })
     }
 }

@@ -1,0 +1,78 @@
+"""Held-out grasp accuracy of ONNX models on one dataset, side by side.
+
+    python3 -m mvgrasp_train.evaluate_onnx --data DATASET MODEL.onnx [MODEL.onnx ...] \
+        [--hold-out-families bowl] [--scenarios isolated,packed]
+
+Runs each model through onnxruntime (CPU) on the held-out instances of
+DATASET (the 80/20 split by instance of dataset.py) and prints the paper's
+accuracy (metric.py) overall, per view direction and per scenario, for the
+seen families and, apart, for the families named by --hold-out-families.
+Use it to compare models trained on different data on the same views: a
+model never saw the instances of another dataset made with other seeds.
+"""
+
+import argparse
+import json
+import sys
+
+import numpy as np
+import onnxruntime
+
+from . import dataset, metric
+
+
+def predict(path, views, batch=256):
+    session = onnxruntime.InferenceSession(path, providers=["CPUExecutionProvider"])
+    out = [session.run(["maps"], {"views": np.ascontiguousarray(views[i:i + batch])})[0]
+           for i in range(0, len(views), batch)]
+    return np.concatenate(out)
+
+
+def report(pred, ds, indices):
+    result = metric.evaluate(pred, ds, indices)
+    scenarios = {}
+    for scenario in sorted({ds.meta[i].get("scenario", "?") for i in indices}):
+        picked = [k for k, i in enumerate(indices) if ds.meta[i].get("scenario", "?") == scenario]
+        if picked:
+            part = metric.evaluate(pred[picked], ds, [indices[k] for k in picked])
+            scenarios[scenario] = {"accuracy": part["accuracy"], "views": part["views_with_positives"]}
+    result["per_scenario"] = scenarios
+    return result
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("models", nargs="+")
+    p.add_argument("--data", required=True)
+    p.add_argument("--hold-out-families", default="bowl")
+    p.add_argument("--scenarios", default="", help="only views of these scenarios (comma-separated)")
+    args = p.parse_args(argv)
+    ds = dataset.load(args.data, mmap=True)
+    _, held = dataset.split_by_instance(ds.meta)
+    scenarios = {s for s in args.scenarios.split(",") if s}
+    if scenarios:
+        held = [i for i in held if ds.meta[i].get("scenario") in scenarios]
+    unseen = {f for f in args.hold_out_families.split(",") if f}
+    # Every view of an unseen family counts, not only its held-out share: no model trained on them.
+    families = [i for i, m in enumerate(ds.meta) if m["family"] in unseen]
+    if scenarios:
+        families = [i for i in families if ds.meta[i].get("scenario") in scenarios]
+    seen = [i for i in held if ds.meta[i]["family"] not in unseen]
+    results = {}
+    for path in args.models:
+        results[path] = {"seen_families": report(predict(path, ds.views[seen]), ds, seen)}
+        if families:
+            results[path]["unseen_families"] = report(predict(path, ds.views[families]), ds, families)
+    print(json.dumps(results, indent=1))
+    print(f"{'model':<40} {'seen':>7} {'top':>6} {'front':>6} {'side':>6} {'unseen':>7}", file=sys.stderr)
+    for path, r in results.items():
+        s = r["seen_families"]
+        v = s["per_view"]
+        u = r.get("unseen_families", {}).get("accuracy", float("nan"))
+        print(f"{path:<40} {100 * s['accuracy']:6.1f}% "
+              + " ".join(f"{100 * v.get(a, {}).get('accuracy', float('nan')):5.1f}%" for a in ("top", "front", "side"))
+              + f" {100 * u:6.1f}%", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
