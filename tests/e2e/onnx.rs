@@ -130,19 +130,24 @@ fn padded_batches_give_the_same_maps() {
     assert!(worst < 1e-5, "padding changed the maps by {worst}");
 }
 
-/// The shipped model gives, through `ort`, what PyTorch gave when it was
-/// exported (models/golden, written by `mvgrasp_train.export --golden`):
+/// The shipped models give, through `ort`, what PyTorch gave when they were
+/// exported (models/golden*, written by `mvgrasp_train.export --golden`):
 /// any drift between training and serving fails here.
 #[test]
 fn golden_vectors_match_through_ort() {
+    check_golden("models/mvgrasp.onnx", "models/golden");
+    check_golden("models/mvgrasp-paper.onnx", "models/golden-paper");
+}
+
+fn check_golden(file: &str, golden: &str) {
     let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let mut model = settings(BackendKind::Onnx).model;
-    model.path = repo.join("models/mvgrasp.onnx");
-    let mut net = OnnxNet::load(&model, 8).expect("models/mvgrasp.onnx loads");
+    model.path = repo.join(file);
+    let mut net = OnnxNet::load(&model, 8).unwrap_or_else(|e| panic!("{file} loads: {e}"));
     let contract = net.contract().clone();
     let l = contract.input_size_px;
-    let (in_shape, input) = read_npy_f32(&repo.join("models/golden/input.npy"));
-    let (out_shape, expected) = read_npy_f32(&repo.join("models/golden/output.npy"));
+    let (in_shape, input) = read_npy_f32(&repo.join(golden).join("input.npy"));
+    let (out_shape, expected) = read_npy_f32(&repo.join(golden).join("output.npy"));
     assert_eq!(in_shape, [in_shape[0], 1, l, l]);
     assert_eq!(out_shape, [in_shape[0], 4, l, l]);
     let mut batch = ViewBatch::new(l);
@@ -170,12 +175,12 @@ fn golden_vectors_match_through_ort() {
     }
     assert!(
         worst < 1e-4,
-        "ort differs from PyTorch's golden output by {worst}"
+        "{file}: ort differs from PyTorch's golden output by {worst}"
     );
     // Not a degenerate model: its quality map varies over a view with an object.
     let q = maps.channel(0, contract.channel_index(Channel::Quality));
     let (lo, hi) = q
         .iter()
         .fold((f32::MAX, f32::MIN), |(a, b), &x| (a.min(x), b.max(x)));
-    assert!(hi - lo > 0.1, "quality spans only {lo}..{hi}");
+    assert!(hi - lo > 0.1, "{file}: quality spans only {lo}..{hi}");
 }
