@@ -153,6 +153,25 @@ fn stages(c: &mut Criterion) {
             BatchSize::SmallInput,
         )
     });
+    // The same without the hand's collision check, to read its cost.
+    let unchecked = Planner::new(
+        PlannerConfig {
+            hand: mvgrasp_core::decode::HandConfig {
+                enabled: false,
+                ..Default::default()
+            },
+            ..planner.config().clone()
+        },
+        planner.contract().clone(),
+    )
+    .expect("planner");
+    group.bench_function("7_decode_and_rank_without_hand_check", |b| {
+        b.iter_batched(
+            || unchecked.prepare(&input, &options).expect("prepare"),
+            |p| unchecked.finish(p, &maps).expect("finish"),
+            BatchSize::SmallInput,
+        )
+    });
     group.bench_function("all_but_network", |b| {
         b.iter(|| {
             let p = planner.prepare(black_box(&input), &options).expect("prepare");

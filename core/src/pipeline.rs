@@ -6,7 +6,10 @@ use std::time::{Duration, Instant};
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
-use crate::decode::{DecodeConfig, Grasp, RankConfig, ViewPlacement, decode_view, rank_grasps};
+use crate::decode::{
+    DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, ViewPlacement, decode_view, hand_collides,
+    rank_grasps_accepted,
+};
 use crate::error::{Error, Result};
 use crate::geometry::Workspace;
 use crate::gripper::Gripper;
@@ -81,6 +84,8 @@ pub struct PlannerConfig {
     pub cluster: ClusterConfig,
     /// Decoding stage.
     pub decode: DecodeConfig,
+    /// The hand checked against the observed points before a grasp is kept.
+    pub hand: HandConfig,
     /// Views rendered per object.
     pub views: Vec<ViewAxis>,
     /// At most this many grasps per object.
@@ -93,6 +98,7 @@ impl Default for PlannerConfig {
             table: TableConfig::default(),
             cluster: ClusterConfig::default(),
             decode: DecodeConfig::default(),
+            hand: HandConfig::default(),
             views: ViewAxis::ALL.to_vec(),
             max_grasps_per_object: 3,
         }
@@ -177,6 +183,9 @@ pub struct DebugView {
 pub struct Plan {
     /// Ranked grasps, best first.
     pub grasps: Vec<Grasp>,
+    /// Grasps dropped because the hand would hit an observed point or the
+    /// table ([`HandConfig`]).
+    pub refused_for_collision: usize,
     /// Every object found, by id.
     pub objects: Vec<DetectedObject>,
     /// The table the objects stand on.
@@ -190,6 +199,8 @@ pub struct Plan {
 struct PreparedObject {
     object: DetectedObject,
     views: Vec<OrthoView>,
+    /// Its points in its own frame, for the hand check.
+    points: Vec<[f32; 3]>,
 }
 
 /// A frame made ready for the network: its views, and what comes after.
@@ -326,7 +337,7 @@ impl Planner {
         let mut batch = ViewBatch::new(l);
         let mut inferred = Vec::new();
         let mut objects = Vec::with_capacity(rendered.len());
-        for (index, ((frame, _), views)) in framed.into_iter().zip(rendered).enumerate() {
+        for (index, ((frame, points), views)) in framed.into_iter().zip(rendered).enumerate() {
             let id = index as u32;
             let entropies: Vec<f64> = views.iter().map(|v| v.entropy).collect();
             let chosen = select_views(options.view_policy, &self.config.views, &entropies, id);
@@ -351,6 +362,7 @@ impl Planner {
                     views: reports,
                 },
                 views,
+                points,
             });
         }
         lap(&mut timings.select);
@@ -396,12 +408,31 @@ impl Planner {
                 &self.config.decode,
             ));
         }
-        let ranked = rank_grasps(
+        let obstacles: Vec<Obstacle<'_>> = objects
+            .iter()
+            .map(|o| Obstacle {
+                world_from_object: &o.object.frame.world_from_object,
+                extent_min_m: &o.object.frame.extent_min_m,
+                extent_max_m: &o.object.frame.extent_max_m,
+                points: &o.points,
+            })
+            .collect();
+        let (ranked, refused_for_collision) = rank_grasps_accepted(
             grasps,
             &RankConfig {
                 min_quality: options.min_quality,
                 max_per_object: self.config.max_grasps_per_object,
                 max_grasps: options.max_grasps,
+            },
+            |g| {
+                !hand_collides(
+                    &g.world_from_grasp,
+                    g.width_m,
+                    &options.gripper,
+                    &self.config.hand,
+                    &table,
+                    &obstacles,
+                )
             },
         );
         let mut debug_views = Vec::new();
@@ -424,6 +455,7 @@ impl Planner {
         timings.decode = start.elapsed();
         Ok(Plan {
             grasps: ranked,
+            refused_for_collision,
             objects: objects.into_iter().map(|o| o.object).collect(),
             table,
             timings,

@@ -3,8 +3,8 @@
 use std::{net::SocketAddr, sync::Arc};
 
 use prometheus::{
-    Encoder, Histogram, HistogramOpts, HistogramVec, IntCounterVec, IntGauge, IntGaugeVec, Opts, Registry,
-    TextEncoder,
+    Encoder, Histogram, HistogramOpts, HistogramVec, IntCounter, IntCounterVec, IntGauge, IntGaugeVec, Opts,
+    Registry, TextEncoder,
 };
 use tokio::{
     io::{AsyncReadExt, AsyncWriteExt},
@@ -35,6 +35,8 @@ pub struct Metrics {
     pub objects_per_request: Histogram,
     /// Grasps returned per planned frame.
     pub grasps_per_request: Histogram,
+    /// Grasps dropped because the hand would hit an observed point or the table.
+    pub grasps_refused_for_collision: IntCounter,
     /// Queued work dropped before inference, by reason.
     pub dropped: IntCounterVec,
     /// 1, labelled with the loaded model and backend.
@@ -89,6 +91,11 @@ impl Metrics {
             in_flight: IntGauge::new("in_flight_requests", "Calls being served").map_err(metric_error)?,
             objects_per_request: counts("objects_per_request", "Objects found per planned frame")?,
             grasps_per_request: counts("grasps_per_request", "Grasps returned per planned frame")?,
+            grasps_refused_for_collision: IntCounter::new(
+                "grasps_refused_for_collision_total",
+                "Grasps dropped because the hand would hit an observed point or the table",
+            )
+            .map_err(metric_error)?,
             dropped: IntCounterVec::new(
                 Opts::new("dropped_views_total", "Queued views dropped before inference"),
                 &["reason"],
@@ -101,7 +108,7 @@ impl Metrics {
             .map_err(metric_error)?,
             registry,
         };
-        let collectors: [Box<dyn prometheus::core::Collector>; 11] = [
+        let collectors: [Box<dyn prometheus::core::Collector>; 12] = [
             Box::new(m.requests.clone()),
             Box::new(m.request_seconds.clone()),
             Box::new(m.stage_seconds.clone()),
@@ -111,6 +118,7 @@ impl Metrics {
             Box::new(m.in_flight.clone()),
             Box::new(m.objects_per_request.clone()),
             Box::new(m.grasps_per_request.clone()),
+            Box::new(m.grasps_refused_for_collision.clone()),
             Box::new(m.dropped.clone()),
             Box::new(m.model_info.clone()),
         ];

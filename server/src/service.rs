@@ -166,6 +166,9 @@ impl PlannerState {
             .objects_per_request
             .observe(plan.objects.len() as f64);
         self.metrics.grasps_per_request.observe(plan.grasps.len() as f64);
+        self.metrics
+            .grasps_refused_for_collision
+            .inc_by(plan.refused_for_collision as u64);
     }
 
     fn observe_call(&self, method: &str, started: Instant, code: Code) {

@@ -1,9 +1,11 @@
 //! Grasp maps -> 6-DoF grasps in the world, and their ranking.
 
+mod collision;
 mod grasp;
 mod peaks;
 mod rank;
 
+pub use collision::{HandConfig, Obstacle, hand_collides};
 pub use grasp::{DecodeConfig, Grasp, ViewPlacement, decode_view, grasp_at};
 pub use peaks::{NEGLIGIBLE_QUALITY, find_peaks, smooth, smoothed_peaks};
-pub use rank::{RankConfig, rank_grasps};
+pub use rank::{RankConfig, rank_grasps, rank_grasps_accepted};

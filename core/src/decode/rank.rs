@@ -15,7 +15,18 @@ pub struct RankConfig {
 
 /// Sorts best first (quality, then object id, view, pixel row and column:
 /// a total order, so equal inputs always rank the same) and applies the limits.
-pub fn rank_grasps(mut grasps: Vec<Grasp>, config: &RankConfig) -> Vec<Grasp> {
+pub fn rank_grasps(grasps: Vec<Grasp>, config: &RankConfig) -> Vec<Grasp> {
+    rank_grasps_accepted(grasps, config, |_| true).0
+}
+
+/// [`rank_grasps`], keeping only grasps that `accept` (asked in rank order,
+/// and only while a grasp could still make the list: a costly check runs
+/// on few grasps). Also returns how many were refused.
+pub fn rank_grasps_accepted(
+    mut grasps: Vec<Grasp>,
+    config: &RankConfig,
+    mut accept: impl FnMut(&Grasp) -> bool,
+) -> (Vec<Grasp>, usize) {
     grasps.retain(|g| g.quality >= config.min_quality);
     grasps.sort_by(|a, b| {
         b.quality
@@ -26,13 +37,24 @@ pub fn rank_grasps(mut grasps: Vec<Grasp>, config: &RankConfig) -> Vec<Grasp> {
             .then(a.pixel[0].cmp(&b.pixel[0]))
     });
     let mut per_object: rustc_hash::FxHashMap<u32, usize> = rustc_hash::FxHashMap::default();
-    grasps.retain(|g| {
+    let mut kept = Vec::with_capacity(config.max_grasps.min(grasps.len()));
+    let mut refused = 0;
+    for g in grasps {
+        if kept.len() == config.max_grasps {
+            break;
+        }
         let n = per_object.entry(g.object_id).or_insert(0);
+        if *n >= config.max_per_object {
+            continue;
+        }
+        if !accept(&g) {
+            refused += 1;
+            continue;
+        }
         *n += 1;
-        *n <= config.max_per_object
-    });
-    grasps.truncate(config.max_grasps);
-    grasps
+        kept.push(g);
+    }
+    (kept, refused)
 }
 
 #[cfg(test)]
@@ -79,5 +101,30 @@ mod tests {
             ..config
         };
         assert_eq!(rank_grasps(ranked.clone(), &one).len(), 1);
+    }
+
+    #[test]
+    fn refused_grasps_make_room_for_the_next_of_their_object() {
+        let grasps = vec![
+            grasp(1, 0.9, 1),
+            grasp(1, 0.8, 2),
+            grasp(1, 0.7, 3),
+            grasp(2, 0.6, 4),
+        ];
+        let config = RankConfig {
+            min_quality: 0.0,
+            max_per_object: 2,
+            max_grasps: 3,
+        };
+        let mut asked = Vec::new();
+        let (kept, refused) = rank_grasps_accepted(grasps, &config, |g| {
+            asked.push(g.pixel[0]);
+            g.pixel[0] != 2
+        });
+        let keys: Vec<u32> = kept.iter().map(|g| g.pixel[0]).collect();
+        assert_eq!(keys, vec![1, 3, 4]);
+        assert_eq!(refused, 1);
+        // Each grasp was asked about once, in rank order.
+        assert_eq!(asked, vec![1, 2, 3, 4]);
     }
 }

@@ -1,18 +1,19 @@
 //! Segmentation and end-to-end checks on rendered scenes of 1, 5 and 15
 //! objects, and on touching (packed) objects.
 
-use mvgrasp_core::{PlanOptions, ViewPolicy, approach_of};
+use mvgrasp_core::decode::HandConfig;
+use mvgrasp_core::{GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig, ViewPolicy, approach_of};
 use nalgebra::{Point3, Vector3};
 
-use crate::plan_rendered;
-use crate::scene::{Camera, Scene, Shape, grid_scene, labelled_points};
+use crate::scene::{self, Camera, Scene, Shape, grid_scene, labelled_points};
+use crate::{plan_rendered, table_workspace};
 
 /// Centroid of what the camera saw of each shape above the table's
 /// "object" threshold (8 mm): what segmentation should recover.
 fn visible_centroids(
     scene: &Scene,
     camera: &Camera,
-    rendered: &crate::scene::Rendered,
+    rendered: &scene::Rendered,
 ) -> Vec<Option<Vector3<f64>>> {
     (0..scene.shapes.len())
         .map(|i| {
@@ -204,4 +205,56 @@ fn deterministic() {
     let (b, _) = plan_rendered(&scene, &camera, &options);
     assert_eq!(a.grasps, b.grasps);
     assert_eq!(a.objects, b.objects);
+}
+
+/// Objects 7 cm apart leave little room for the fingers: the hand check
+/// refuses some of the baseline's grasps, every grasp it keeps is one the
+/// unchecked planner also found, and with the check off nothing is refused.
+#[test]
+fn the_hand_check_refuses_grasps_between_close_neighbours() {
+    let scene = grid_scene(0.0, 6, 3, 0.07);
+    let camera = Camera::orbit(Vector3::zeros(), 0.8, 55.0, -90.0);
+    let rendered = scene::render(&scene, &camera);
+    let bytes = rendered.depth_bytes();
+    let input = camera.scene_input(&bytes, table_workspace(&scene));
+    let options = PlanOptions {
+        view_policy: ViewPolicy::All,
+        max_grasps: 100,
+        min_quality: 0.0,
+        ..PlanOptions::default()
+    };
+    let mut net = MomentsNet::default();
+    let plan_with = |hand: HandConfig, net: &mut MomentsNet| {
+        // No per-object limit, so that the checked grasps are a subset.
+        let config = PlannerConfig {
+            hand,
+            max_grasps_per_object: 100,
+            ..PlannerConfig::default()
+        };
+        let planner = Planner::new(config, net.contract().clone()).expect("planner");
+        planner.plan(&input, &options, net).expect("plan")
+    };
+    let checked = plan_with(HandConfig::default(), &mut net);
+    let unchecked = plan_with(
+        HandConfig {
+            enabled: false,
+            ..HandConfig::default()
+        },
+        &mut net,
+    );
+    assert_eq!(unchecked.refused_for_collision, 0);
+    assert!(
+        checked.refused_for_collision > 0,
+        "no grasp refused among neighbours 7 cm apart"
+    );
+    assert!(!checked.grasps.is_empty());
+    for g in &checked.grasps {
+        assert!(
+            unchecked
+                .grasps
+                .iter()
+                .any(|u| u.world_from_grasp == g.world_from_grasp && u.width_m == g.width_m),
+            "a checked grasp the unchecked planner did not find"
+        );
+    }
 }

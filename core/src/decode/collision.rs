@@ -1,0 +1,395 @@
+//! Does the hand hit what the camera saw? A check of each grasp, in rank
+//! order, before it is returned.
+//!
+//! The hand is three boxes in the grasp frame (DESIGN.md: +z the approach,
+//! +x the closing direction, origin midway between the fingertips), as the
+//! simulator models the Robotiq 2F-140 (`sim::grasp::GripperModel`):
+//!
+//! - two pads, `pad_thickness_m` thick along x, the gripper's finger width
+//!   along y and its finger depth along z, their inner faces `width / 2`
+//!   from the origin;
+//! - the palm behind them, `palm_depth_m` along z, `palm_width_m` along y,
+//!   spanning both pads along x.
+//!
+//! The boxes are checked where the hand ends and swept back along the
+//! approach by `approach_m`, pre-shaped `preshape_margin_m` wider (within
+//! the stroke), as a robot arrives. A grasp collides when at least
+//! `min_points` of one detected object's points fall inside (one stray
+//! reading is not an obstacle), or when a box corner reaches under the
+//! table plane. The object's own points count too: pads that land on the
+//! object are a failed grasp as much as pads that land on its neighbour.
+//!
+//! Cost: the points are each object's, in its own frame (kept from the
+//! views). Each hand box's bounding box is found in that frame; an object
+//! none of them reaches is skipped, a point outside all of them costs a few
+//! compares, and only the rest are moved into the grasp frame (f32).
+
+use nalgebra::{Isometry3, Point3, Vector3};
+
+use crate::gripper::Gripper;
+use crate::segment::TablePlane;
+
+/// The hand's shape beyond the pads' contact faces, and how strictly to check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HandConfig {
+    /// Check the hand at all (off: every grasp passes).
+    pub enabled: bool,
+    /// Pad thickness along the closing direction (m).
+    pub pad_thickness_m: f64,
+    /// Gripper body behind the pads: depth along the approach (m).
+    pub palm_depth_m: f64,
+    /// Gripper body extent across the closing direction (m).
+    pub palm_width_m: f64,
+    /// How far back along the approach the hand is swept (m).
+    pub approach_m: f64,
+    /// Extra opening while approaching (m), within the stroke.
+    pub preshape_margin_m: f64,
+    /// Observed points inside the hand that make a collision.
+    pub min_points: usize,
+    /// Below this height above the table a box corner is a collision (m;
+    /// negative: that far into the table).
+    pub table_margin_m: f64,
+}
+
+impl Default for HandConfig {
+    /// The Robotiq 2F-140 as `sim` models it; a 10 cm approach.
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            pad_thickness_m: 0.01,
+            palm_depth_m: 0.05,
+            palm_width_m: 0.075,
+            approach_m: 0.10,
+            preshape_margin_m: 0.02,
+            min_points: 3,
+            table_margin_m: -0.002,
+        }
+    }
+}
+
+/// An axis-aligned box in the grasp frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct GraspBox {
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
+}
+
+impl GraspBox {
+    fn corners(&self) -> impl Iterator<Item = Vector3<f64>> + '_ {
+        (0..8).map(move |i| {
+            Vector3::new(
+                if i & 1 == 0 { self.lo.x } else { self.hi.x },
+                if i & 2 == 0 { self.lo.y } else { self.hi.y },
+                if i & 4 == 0 { self.lo.z } else { self.hi.z },
+            )
+        })
+    }
+}
+
+/// The hand's boxes for an opening `width_m`, the fingertips at `tip_z`
+/// and swept back to `tip_z - sweep` (grasp frame).
+fn hand_boxes(width_m: f64, tip_z: f64, sweep: f64, gripper: &Gripper, hand: &HandConfig) -> [GraspBox; 3] {
+    let (half_w, t) = (width_m / 2.0, hand.pad_thickness_m);
+    let half_pad_y = gripper.finger_width_m / 2.0;
+    let pad_lo_z = tip_z - gripper.finger_depth_m - sweep;
+    let pad = |sign: f64| {
+        let (a, b) = (sign * half_w, sign * (half_w + t));
+        GraspBox {
+            lo: Vector3::new(a.min(b), -half_pad_y, pad_lo_z),
+            hi: Vector3::new(a.max(b), half_pad_y, tip_z),
+        }
+    };
+    let palm_hi_z = tip_z - gripper.finger_depth_m;
+    let palm = GraspBox {
+        lo: Vector3::new(
+            -(half_w + t),
+            -hand.palm_width_m / 2.0,
+            palm_hi_z - hand.palm_depth_m - sweep,
+        ),
+        hi: Vector3::new(half_w + t, hand.palm_width_m / 2.0, palm_hi_z),
+    };
+    [pad(-1.0), pad(1.0), palm]
+}
+
+/// The observed points of one detected object, in its own frame.
+#[derive(Debug, Clone, Copy)]
+pub struct Obstacle<'a> {
+    /// Maps object-frame points to the world.
+    pub world_from_object: &'a Isometry3<f64>,
+    /// Lower corner of the points' box (object frame).
+    pub extent_min_m: &'a Vector3<f64>,
+    /// Upper corner of the points' box (object frame).
+    pub extent_max_m: &'a Vector3<f64>,
+    /// The points (object frame).
+    pub points: &'a [[f32; 3]],
+}
+
+/// Whether the hand, closing to `width_m` at `world_from_grasp` after its
+/// approach, would hit the observed points of `obstacles` or the table.
+pub fn hand_collides(
+    world_from_grasp: &Isometry3<f64>,
+    width_m: f64,
+    gripper: &Gripper,
+    hand: &HandConfig,
+    table: &TablePlane,
+    obstacles: &[Obstacle<'_>],
+) -> bool {
+    if !hand.enabled {
+        return false;
+    }
+    let preshaped = (width_m + hand.preshape_margin_m)
+        .min(gripper.max_width_m)
+        .max(width_m);
+    // Where the hand ends, and the approach behind it (pre-shaped wider).
+    let mut boxes = hand_boxes(width_m, 0.0, 0.0, gripper, hand).to_vec();
+    boxes.extend(hand_boxes(preshaped, -1e-3, hand.approach_m, gripper, hand));
+
+    // Corner heights above the table: the plane's normal in the grasp frame
+    // makes each a dot product.
+    let normal_in_grasp = world_from_grasp.rotation.inverse() * table.normal;
+    let origin_height = table.height_of(&world_from_grasp.translation.vector);
+    if boxes
+        .iter()
+        .flat_map(GraspBox::corners)
+        .any(|c| origin_height + normal_in_grasp.dot(&c) < hand.table_margin_m)
+    {
+        return true;
+    }
+    let boxes_f32: Vec<([f32; 3], [f32; 3])> = boxes
+        .iter()
+        .map(|b| (b.lo.map(|v| v as f32).into(), b.hi.map(|v| v as f32).into()))
+        .collect();
+    obstacles
+        .iter()
+        .any(|o| hits_object(world_from_grasp, &boxes, &boxes_f32, hand.min_points, o))
+}
+
+/// At least `min_points` of `object`'s points inside one of `boxes`.
+fn hits_object(
+    world_from_grasp: &Isometry3<f64>,
+    boxes: &[GraspBox],
+    boxes_f32: &[([f32; 3], [f32; 3])],
+    min_points: usize,
+    object: &Obstacle<'_>,
+) -> bool {
+    let object_from_grasp = object.world_from_object.inverse() * world_from_grasp;
+    // Each hand box's bounding box in the object frame (centre moved, half
+    // extents through |R|), cut to the object's box; an object that none
+    // reaches is skipped, and a point in none of them is not moved.
+    let rotation = object_from_grasp.rotation.to_rotation_matrix().into_inner();
+    let abs_rotation = rotation.abs();
+    let mut near: Vec<([f32; 3], [f32; 3])> = Vec::with_capacity(boxes.len());
+    for b in boxes {
+        let centre = object_from_grasp * Point3::from((b.lo + b.hi) / 2.0);
+        let half = abs_rotation * ((b.hi - b.lo) / 2.0);
+        let lo = (centre.coords - half).sup(object.extent_min_m);
+        let hi = (centre.coords + half).inf(object.extent_max_m);
+        if (0..3).all(|k| lo[k] <= hi[k]) {
+            near.push((lo.map(|v| v as f32).into(), hi.map(|v| v as f32).into()));
+        }
+    }
+    if near.is_empty() {
+        return false;
+    }
+    let grasp_from_object = object_from_grasp.inverse();
+    let r = grasp_from_object
+        .rotation
+        .to_rotation_matrix()
+        .into_inner()
+        .map(|v| v as f32);
+    let t = grasp_from_object.translation.vector.map(|v| v as f32);
+    let mut inside = 0;
+    for p in object.points {
+        if !near
+            .iter()
+            .any(|(lo, hi)| (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k]))
+        {
+            continue;
+        }
+        let g = [
+            r[(0, 0)] * p[0] + r[(0, 1)] * p[1] + r[(0, 2)] * p[2] + t.x,
+            r[(1, 0)] * p[0] + r[(1, 1)] * p[1] + r[(1, 2)] * p[2] + t.y,
+            r[(2, 0)] * p[0] + r[(2, 1)] * p[1] + r[(2, 2)] * p[2] + t.z,
+        ];
+        if boxes_f32
+            .iter()
+            .any(|(blo, bhi)| (0..3).all(|k| g[k] >= blo[k] && g[k] <= bhi[k]))
+        {
+            inside += 1;
+            if inside >= min_points {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Translation3, UnitQuaternion};
+
+    use super::*;
+
+    fn table_at(z: f64) -> TablePlane {
+        TablePlane {
+            normal: Vector3::z(),
+            offset_m: -z,
+            support: 1.0,
+        }
+    }
+
+    /// A top-down grasp at height `z`: approach -z (world), closing along world x.
+    fn top_down(x: f64, y: f64, z: f64) -> Isometry3<f64> {
+        let rotation = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+        Isometry3::from_parts(Translation3::new(x, y, z), rotation)
+    }
+
+    /// `points` (world frame) as one obstacle, framed by the identity.
+    fn collides(
+        grasp: &Isometry3<f64>,
+        width: f64,
+        hand: &HandConfig,
+        table: &TablePlane,
+        points: &[[f32; 3]],
+    ) -> bool {
+        let identity = Isometry3::identity();
+        let (mut lo, mut hi) = (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN));
+        for p in points {
+            let v = Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+            lo = lo.inf(&v);
+            hi = hi.sup(&v);
+        }
+        let obstacle = Obstacle {
+            world_from_object: &identity,
+            extent_min_m: &lo,
+            extent_max_m: &hi,
+            points,
+        };
+        let obstacles = if points.is_empty() { vec![] } else { vec![obstacle] };
+        hand_collides(grasp, width, &Gripper::default(), hand, table, &obstacles)
+    }
+
+    /// Points filling a box (world frame) on a 5 mm grid.
+    fn block(lo: [f64; 3], hi: [f64; 3]) -> Vec<[f32; 3]> {
+        let mut out = Vec::new();
+        let steps = |a: f64, b: f64| ((b - a) / 0.005).round() as usize;
+        for i in 0..=steps(lo[0], hi[0]) {
+            for j in 0..=steps(lo[1], hi[1]) {
+                for k in 0..=steps(lo[2], hi[2]) {
+                    out.push([
+                        (lo[0] + i as f64 * 0.005) as f32,
+                        (lo[1] + j as f64 * 0.005) as f32,
+                        (lo[2] + k as f64 * 0.005) as f32,
+                    ]);
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn a_free_grasp_around_a_box_passes_and_a_neighbour_under_a_pad_stops_it() {
+        let (hand, table) = (HandConfig::default(), table_at(0.0));
+        // A 4 cm wide, 6 cm tall box; grasp 2 cm below its top, opened to 6 cm.
+        let object = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
+        let grasp = top_down(0.0, 0.0, 0.04);
+        assert!(!collides(&grasp, 0.06, &hand, &table, &object));
+        // Opened to 3 cm, the pads land on the box itself.
+        assert!(collides(&grasp, 0.03, &hand, &table, &object));
+        // A neighbour 1 cm beside the right pad's path.
+        let mut scene = object.clone();
+        scene.extend(block([0.035, -0.02, 0.0], [0.07, 0.02, 0.06]));
+        assert!(collides(&grasp, 0.06, &hand, &table, &scene));
+        // The same neighbour 10 cm away is no obstacle.
+        let mut far = object;
+        far.extend(block([0.12, -0.02, 0.0], [0.16, 0.02, 0.06]));
+        assert!(!collides(&grasp, 0.06, &hand, &table, &far));
+    }
+
+    #[test]
+    fn the_palm_and_the_approach_count_and_stray_points_do_not() {
+        let (hand, table) = (HandConfig::default(), table_at(0.0));
+        let grasp = top_down(0.0, 0.0, 0.04);
+        // A shelf over the grasp, 12 cm above the fingertips: only the swept
+        // approach passes through it (pads and palm end 9 cm above them).
+        let shelf = block([-0.05, -0.05, 0.16], [0.05, 0.05, 0.165]);
+        assert!(collides(&grasp, 0.06, &hand, &table, &shelf));
+        let short = HandConfig {
+            approach_m: 0.0,
+            ..hand.clone()
+        };
+        assert!(!collides(&grasp, 0.06, &short, &table, &shelf));
+        // Two stray readings inside the right pad are below min_points; three are not.
+        let mut stray = vec![[0.035f32, 0.0, 0.05], [0.036, 0.0, 0.06]];
+        assert!(!collides(&grasp, 0.06, &hand, &table, &stray));
+        stray.push([0.034, 0.005, 0.07]);
+        assert!(collides(&grasp, 0.06, &hand, &table, &stray));
+        let off = HandConfig {
+            enabled: false,
+            ..hand
+        };
+        let object = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
+        assert!(!collides(&grasp, 0.03, &off, &table, &object));
+    }
+
+    #[test]
+    fn points_held_in_a_rotated_object_frame_give_the_same_answers() {
+        let (hand, table) = (HandConfig::default(), table_at(0.0));
+        let world_from_object = Isometry3::from_parts(
+            Translation3::new(0.3, -0.2, 0.01),
+            UnitQuaternion::from_euler_angles(0.1, -0.2, 1.3),
+        );
+        let as_obstacle = |world: &[[f32; 3]]| -> (Vec<[f32; 3]>, Vector3<f64>, Vector3<f64>) {
+            let (mut lo, mut hi) = (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN));
+            let local: Vec<[f32; 3]> = world
+                .iter()
+                .map(|p| {
+                    let w = Point3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+                    let l = world_from_object.inverse_transform_point(&w).coords;
+                    lo = lo.inf(&l);
+                    hi = hi.sup(&l);
+                    [l.x as f32, l.y as f32, l.z as f32]
+                })
+                .collect();
+            (local, lo, hi)
+        };
+        let grasp = top_down(0.0, 0.0, 0.04);
+        let mut scene = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
+        scene.extend(block([0.035, -0.02, 0.0], [0.07, 0.02, 0.06]));
+        let (local, lo, hi) = as_obstacle(&scene);
+        let obstacle = Obstacle {
+            world_from_object: &world_from_object,
+            extent_min_m: &lo,
+            extent_max_m: &hi,
+            points: &local,
+        };
+        let gripper = Gripper::default();
+        for (width, want) in [(0.06, true), (0.03, true)] {
+            assert_eq!(
+                hand_collides(&grasp, width, &gripper, &hand, &table, &[obstacle]),
+                want
+            );
+            assert_eq!(collides(&grasp, width, &hand, &table, &scene), want);
+        }
+        // The box alone, opened to 6 cm: free in either frame.
+        let single = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
+        let (local, lo, hi) = as_obstacle(&single);
+        let alone = Obstacle {
+            world_from_object: &world_from_object,
+            extent_min_m: &lo,
+            extent_max_m: &hi,
+            points: &local,
+        };
+        assert!(!hand_collides(&grasp, 0.06, &gripper, &hand, &table, &[alone]));
+        assert!(hand_collides(&grasp, 0.03, &gripper, &hand, &table, &[alone]));
+    }
+
+    #[test]
+    fn pads_below_the_table_collide() {
+        let hand = HandConfig::default();
+        // Fingertips 1 cm under the table top.
+        let grasp = top_down(0.0, 0.0, -0.01);
+        assert!(collides(&grasp, 0.06, &hand, &table_at(0.0), &[]));
+        assert!(!collides(&grasp, 0.06, &hand, &table_at(-0.05), &[]));
+    }
+}
