@@ -332,6 +332,18 @@ mod tests {
         assert!(!collides(&grasp, 0.03, &off, &table, &object));
     }
 
+    /// Local points with their box, framed by `world_from_object`.
+    type Framed = (Vec<[f32; 3]>, Vector3<f64>, Vector3<f64>);
+
+    fn obstacle_of<'a>(world_from_object: &'a Isometry3<f64>, (local, lo, hi): &'a Framed) -> Obstacle<'a> {
+        Obstacle {
+            world_from_object,
+            extent_min_m: lo,
+            extent_max_m: hi,
+            points: local,
+        }
+    }
+
     #[test]
     fn points_held_in_a_rotated_object_frame_give_the_same_answers() {
         let (hand, table) = (HandConfig::default(), table_at(0.0));
@@ -339,7 +351,7 @@ mod tests {
             Translation3::new(0.3, -0.2, 0.01),
             UnitQuaternion::from_euler_angles(0.1, -0.2, 1.3),
         );
-        let as_obstacle = |world: &[[f32; 3]]| -> (Vec<[f32; 3]>, Vector3<f64>, Vector3<f64>) {
+        let as_obstacle = |world: &[[f32; 3]]| -> Framed {
             let (mut lo, mut hi) = (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN));
             let local: Vec<[f32; 3]> = world
                 .iter()
@@ -356,13 +368,8 @@ mod tests {
         let grasp = top_down(0.0, 0.0, 0.04);
         let mut scene = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
         scene.extend(block([0.035, -0.02, 0.0], [0.07, 0.02, 0.06]));
-        let (local, lo, hi) = as_obstacle(&scene);
-        let obstacle = Obstacle {
-            world_from_object: &world_from_object,
-            extent_min_m: &lo,
-            extent_max_m: &hi,
-            points: &local,
-        };
+        let framed = as_obstacle(&scene);
+        let obstacle = obstacle_of(&world_from_object, &framed);
         let gripper = Gripper::default();
         for (width, want) in [(0.06, true), (0.03, true)] {
             assert_eq!(
@@ -373,13 +380,8 @@ mod tests {
         }
         // The box alone, opened to 6 cm: free in either frame.
         let single = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
-        let (local, lo, hi) = as_obstacle(&single);
-        let alone = Obstacle {
-            world_from_object: &world_from_object,
-            extent_min_m: &lo,
-            extent_max_m: &hi,
-            points: &local,
-        };
+        let framed = as_obstacle(&single);
+        let alone = obstacle_of(&world_from_object, &framed);
         assert!(!hand_collides(&grasp, 0.06, &gripper, &hand, &table, &[alone]));
         assert!(hand_collides(&grasp, 0.03, &gripper, &hand, &table, &[alone]));
     }
