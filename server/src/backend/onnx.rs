@@ -73,7 +73,7 @@ impl OnnxNet {
     /// size cost about as much as cuDNN's algorithm search for a new shape
     /// (185-270 ms exhaustive, about 40 ms heuristic, 9-16 ms default).
     /// With 16 clients and unpadded (or power-of-two) batch sizes that
-    /// dominated: 65 calls/s. One fixed shape never changes.
+    /// dominated: 39-65 calls/s. One fixed shape never changes.
     pub fn load(settings: &ModelSettings, batch_views: usize) -> Result<Self> {
         let env = environment(&onnxruntime_library(settings))?;
         let startup = |what: &str, e: &dyn std::fmt::Display| Error::Startup(format!("{what}: {e}"));
