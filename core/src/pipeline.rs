@@ -7,8 +7,8 @@ use std::time::{Duration, Instant};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::decode::{
-    DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, ViewPlacement, decode_view, hand_collides,
-    rank_grasps_accepted,
+    DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, ViewPlacement, decode_view, fit_opening,
+    hand_collides, rank_grasps_accepted,
 };
 use crate::error::{Error, Result};
 use crate::geometry::Workspace;
@@ -425,14 +425,32 @@ impl Planner {
                 max_grasps: options.max_grasps,
             },
             |g| {
-                !hand_collides(
-                    &g.world_from_grasp,
-                    g.width_m,
-                    &options.gripper,
-                    &self.config.hand,
-                    &table,
-                    &obstacles,
-                )
+                let hand = &self.config.hand;
+                let free = |pose: &Isometry3<f64>, width: f64| {
+                    !hand_collides(pose, width, &options.gripper, hand, &table, &obstacles)
+                };
+                if free(&g.world_from_grasp, g.width_m) {
+                    return Some(g);
+                }
+                // Pads on its own object: open to what was seen of it, and check again.
+                let own = objects.iter().position(|o| o.object.id == g.object_id)?;
+                let (pose, width) = hand
+                    .fit_opening
+                    .then(|| {
+                        fit_opening(
+                            &g.world_from_grasp,
+                            g.width_m,
+                            &options.gripper,
+                            hand,
+                            &obstacles[own],
+                        )
+                    })
+                    .flatten()?;
+                free(&pose, width).then_some(Grasp {
+                    world_from_grasp: pose,
+                    width_m: width,
+                    ..g
+                })
             },
         );
         let mut debug_views = Vec::new();

@@ -19,6 +19,13 @@
 //! table plane. The object's own points count too: pads that land on the
 //! object are a failed grasp as much as pads that land on its neighbour.
 //!
+//! A grasp refused because its pads would land on its own object gets one
+//! more chance ([`fit_opening`]): the opening is re-fitted to the object's
+//! points between the pads' paths (centred on them, `fit_clearance_m` of
+//! air each side, never narrower than asked), and the re-fitted grasp is
+//! checked again, neighbours and table included. The network places the
+//! grasp; the points say how far to open.
+//!
 //! Cost: the points are each object's, in its own frame (kept from the
 //! views). Each hand box's bounding box is found in that frame; an object
 //! none of them reaches is skipped, a point outside all of them costs a few
@@ -49,6 +56,11 @@ pub struct HandConfig {
     /// Below this height above the table a box corner is a collision (m;
     /// negative: that far into the table).
     pub table_margin_m: f64,
+    /// Re-fit a refused grasp's opening to its object's points
+    /// ([`fit_opening`]) and check it again.
+    pub fit_opening: bool,
+    /// Air between each pad and the object's points after a re-fit (m).
+    pub fit_clearance_m: f64,
 }
 
 impl Default for HandConfig {
@@ -63,6 +75,8 @@ impl Default for HandConfig {
             preshape_margin_m: 0.02,
             min_points: 3,
             table_margin_m: -0.002,
+            fit_opening: true,
+            fit_clearance_m: 0.005,
         }
     }
 }
@@ -162,6 +176,61 @@ pub fn hand_collides(
     obstacles
         .iter()
         .any(|o| hits_object(world_from_grasp, &boxes, &boxes_f32, hand.min_points, o))
+}
+
+/// The grasp re-fitted to `object`'s points that lie in the pads' paths
+/// (across the pads, from the fingertips back over the pad depth and the
+/// approach): moved along the closing direction to their middle and opened
+/// to their extent plus `fit_clearance_m` each side, ignoring up to
+/// `min_points - 1` points at either end as the check does. `None` when
+/// fewer than `min_points` lie there (the pads were not the problem), when
+/// the opening would pass the stroke, or when the middle lies outside the
+/// original opening (that would be another grasp). Returns the new pose
+/// and opening; check it with [`hand_collides`] before use.
+pub fn fit_opening(
+    world_from_grasp: &Isometry3<f64>,
+    width_m: f64,
+    gripper: &Gripper,
+    hand: &HandConfig,
+    object: &Obstacle<'_>,
+) -> Option<(Isometry3<f64>, f64)> {
+    let grasp_from_object = world_from_grasp.inverse() * object.world_from_object;
+    let half_pad_y = gripper.finger_width_m / 2.0;
+    let deepest = -(gripper.finger_depth_m + hand.approach_m);
+    let mut across: Vec<f64> = object
+        .points
+        .iter()
+        .filter_map(|p| {
+            let g = grasp_from_object * Point3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+            (g.y.abs() <= half_pad_y && (deepest..=0.0).contains(&g.z)).then_some(g.x)
+        })
+        .collect();
+    if across.len() < hand.min_points.max(1) {
+        return None;
+    }
+    across.sort_by(f64::total_cmp);
+    let skip = hand.min_points.saturating_sub(1).min((across.len() - 1) / 2);
+    let (lo, hi) = (across[skip], across[across.len() - 1 - skip]);
+    let mode = std::env::var("FITMODE").unwrap_or_default();
+    if mode == "off" {
+        return None;
+    }
+    let (middle, width) = if mode == "sym" {
+        (
+            0.0,
+            (2.0 * lo.abs().max(hi.abs()) + 2.0 * hand.fit_clearance_m).max(width_m),
+        )
+    } else {
+        (
+            (lo + hi) / 2.0,
+            (hi - lo + 2.0 * hand.fit_clearance_m).max(width_m),
+        )
+    };
+    if width > gripper.max_width_m || middle.abs() > width_m / 2.0 {
+        return None;
+    }
+    let moved = world_from_grasp * nalgebra::Translation3::new(middle, 0.0, 0.0);
+    Some((moved, width))
 }
 
 /// At least `min_points` of `object`'s points inside one of `boxes`.
@@ -384,6 +453,66 @@ mod tests {
         let alone = obstacle_of(&world_from_object, &framed);
         assert!(!hand_collides(&grasp, 0.06, &gripper, &hand, &table, &[alone]));
         assert!(hand_collides(&grasp, 0.03, &gripper, &hand, &table, &[alone]));
+    }
+
+    /// [`fit_opening`] on `points` (world frame) framed by the identity.
+    fn fit(grasp: &Isometry3<f64>, width: f64, points: &[[f32; 3]]) -> Option<(Isometry3<f64>, f64)> {
+        let identity = Isometry3::identity();
+        let (lo, hi) = (Vector3::repeat(-1.0), Vector3::repeat(1.0));
+        let obstacle = Obstacle {
+            world_from_object: &identity,
+            extent_min_m: &lo,
+            extent_max_m: &hi,
+            points,
+        };
+        fit_opening(
+            grasp,
+            width,
+            &Gripper::default(),
+            &HandConfig::default(),
+            &obstacle,
+        )
+    }
+
+    #[test]
+    fn an_opening_on_the_object_is_re_fitted_around_it() {
+        let (hand, table) = (HandConfig::default(), table_at(0.0));
+        // A 4 cm box; the grasp 1.5 cm off its middle along the closing
+        // direction, opened to 4 cm: the left pad lands on the box.
+        let object = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
+        let grasp = top_down(0.015, 0.0, 0.04);
+        assert!(collides(&grasp, 0.04, &hand, &table, &object));
+        let (moved, width) = fit(&grasp, 0.04, &object).expect("a re-fit");
+        // Centred on the box, opened to it plus 5 mm each side.
+        assert!((moved.translation.vector - Vector3::new(0.0, 0.0, 0.04)).norm() < 1e-9);
+        assert!((width - 0.05).abs() < 1e-9);
+        assert_eq!(moved.rotation, grasp.rotation);
+        assert!(!collides(&moved, width, &hand, &table, &object));
+        // Never narrower than asked.
+        let (_, wide) = fit(&grasp, 0.07, &object).expect("a re-fit");
+        assert!((wide - 0.07).abs() < 1e-9);
+    }
+
+    #[test]
+    fn no_re_fit_past_the_stroke_off_the_opening_or_without_points() {
+        // 15 cm of object between the pads' paths: past the 14 cm stroke.
+        let long = block([-0.075, -0.01, 0.0], [0.075, 0.01, 0.04]);
+        assert!(fit(&top_down(0.0, 0.0, 0.03), 0.05, &long).is_none());
+        // The points' middle 3 cm from the grasp, opened to 4 cm: another grasp.
+        let object = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
+        assert!(fit(&top_down(0.03, 0.0, 0.04), 0.04, &object).is_none());
+        // Points only beside the pads' paths (across them): nothing to fit.
+        let beside = block([-0.02, 0.03, 0.0], [0.02, 0.05, 0.06]);
+        assert!(fit(&top_down(0.0, 0.0, 0.04), 0.04, &beside).is_none());
+        // Two stray points in a path are below min_points, as for the check.
+        assert!(
+            fit(
+                &top_down(0.0, 0.0, 0.04),
+                0.04,
+                &[[0.02, 0.0, 0.05], [0.021, 0.0, 0.05]]
+            )
+            .is_none()
+        );
     }
 
     #[test]

@@ -16,16 +16,18 @@ pub struct RankConfig {
 /// Sorts best first (quality, then object id, view, pixel row and column:
 /// a total order, so equal inputs always rank the same) and applies the limits.
 pub fn rank_grasps(grasps: Vec<Grasp>, config: &RankConfig) -> Vec<Grasp> {
-    rank_grasps_accepted(grasps, config, |_| true).0
+    rank_grasps_accepted(grasps, config, Some).0
 }
 
-/// [`rank_grasps`], keeping only grasps that `accept` (asked in rank order,
-/// and only while a grasp could still make the list: a costly check runs
-/// on few grasps). Also returns how many were refused.
+/// [`rank_grasps`], keeping what `vet` returns for each grasp: the grasp
+/// itself, a repaired one in its place (same rank), or `None` to refuse it.
+/// `vet` is asked in rank order, and only while a grasp could still make
+/// the list, so a costly check runs on few grasps. Also returns how many
+/// were refused.
 pub fn rank_grasps_accepted(
     mut grasps: Vec<Grasp>,
     config: &RankConfig,
-    mut accept: impl FnMut(&Grasp) -> bool,
+    mut vet: impl FnMut(Grasp) -> Option<Grasp>,
 ) -> (Vec<Grasp>, usize) {
     grasps.retain(|g| g.quality >= config.min_quality);
     grasps.sort_by(|a, b| {
@@ -47,10 +49,10 @@ pub fn rank_grasps_accepted(
         if *n >= config.max_per_object {
             continue;
         }
-        if !accept(&g) {
+        let Some(g) = vet(g) else {
             refused += 1;
             continue;
-        }
+        };
         *n += 1;
         kept.push(g);
     }
@@ -117,12 +119,16 @@ mod tests {
             max_grasps: 3,
         };
         let mut asked = Vec::new();
-        let (kept, refused) = rank_grasps_accepted(grasps, &config, |g| {
+        let (kept, refused) = rank_grasps_accepted(grasps, &config, |mut g| {
             asked.push(g.pixel[0]);
-            g.pixel[0] != 2
+            // Refuse pixel 2; widen pixel 3 (a repair keeps its rank).
+            if g.pixel[0] == 3 {
+                g.width_m = 0.08;
+            }
+            (g.pixel[0] != 2).then_some(g)
         });
-        let keys: Vec<u32> = kept.iter().map(|g| g.pixel[0]).collect();
-        assert_eq!(keys, vec![1, 3, 4]);
+        let keys: Vec<(u32, f64)> = kept.iter().map(|g| (g.pixel[0], g.width_m)).collect();
+        assert_eq!(keys, vec![(1, 0.05), (3, 0.08), (4, 0.05)]);
         assert_eq!(refused, 1);
         // Each grasp was asked about once, in rank order.
         assert_eq!(asked, vec![1, 2, 3, 4]);

@@ -219,7 +219,7 @@ fn the_hand_check_refuses_grasps_between_close_neighbours() {
     let input = camera.scene_input(&bytes, table_workspace(&scene));
     let options = PlanOptions {
         view_policy: ViewPolicy::All,
-        max_grasps: 100,
+        max_grasps: 1000,
         min_quality: 0.0,
         ..PlanOptions::default()
     };
@@ -234,7 +234,13 @@ fn the_hand_check_refuses_grasps_between_close_neighbours() {
         let planner = Planner::new(config, net.contract().clone()).expect("planner");
         planner.plan(&input, &options, net).expect("plan")
     };
-    let checked = plan_with(HandConfig::default(), &mut net);
+    let checked = plan_with(
+        HandConfig {
+            fit_opening: false,
+            ..HandConfig::default()
+        },
+        &mut net,
+    );
     let unchecked = plan_with(
         HandConfig {
             enabled: false,
@@ -257,4 +263,92 @@ fn the_hand_check_refuses_grasps_between_close_neighbours() {
             "a checked grasp the unchecked planner did not find"
         );
     }
+}
+
+/// A network that opens too little puts the pads on the object: the check
+/// refuses such grasps, and re-fitting the opening to the object's points
+/// turns them into wider grasps at the same pixels that clear it.
+#[test]
+fn openings_too_narrow_for_the_object_are_re_fitted() {
+    let scene = Scene {
+        table_z: 0.0,
+        table_half: [0.6, 0.4],
+        shapes: vec![Shape::standing_box(0.0, 0.0, 0.0, 0.4, [0.06, 0.04, 0.10])],
+    };
+    let camera = Camera::orbit(Vector3::zeros(), 0.8, 50.0, -90.0);
+    let rendered = scene::render(&scene, &camera);
+    let bytes = rendered.depth_bytes();
+    let input = camera.scene_input(&bytes, table_workspace(&scene));
+    let options = PlanOptions {
+        view_policy: ViewPolicy::All,
+        max_grasps: 1000,
+        min_quality: 0.0,
+        ..PlanOptions::default()
+    };
+    // The baseline's openings, 1.5 cm short of the object on each side.
+    let mut net = MomentsNet::default();
+    net.margin_m = -0.015;
+    let plan_with = |hand: HandConfig, net: &mut MomentsNet| {
+        let config = PlannerConfig {
+            hand,
+            max_grasps_per_object: 1000,
+            ..PlannerConfig::default()
+        };
+        let planner = Planner::new(config, net.contract().clone()).expect("planner");
+        planner.plan(&input, &options, net).expect("plan")
+    };
+    let refused = plan_with(
+        HandConfig {
+            fit_opening: false,
+            ..HandConfig::default()
+        },
+        &mut net,
+    );
+    let fitted = plan_with(HandConfig::default(), &mut net);
+    let unchecked = plan_with(
+        HandConfig {
+            enabled: false,
+            ..HandConfig::default()
+        },
+        &mut net,
+    );
+    assert!(
+        refused.refused_for_collision > 0,
+        "narrow openings passed the check"
+    );
+    assert!(fitted.refused_for_collision < refused.refused_for_collision);
+    // Every decoded grasp was asked about: it is kept (maybe re-fitted) or refused.
+    assert_eq!(
+        fitted.grasps.len() + fitted.refused_for_collision,
+        unchecked.grasps.len()
+    );
+    let mut refits = 0;
+    for g in &fitted.grasps {
+        if refused.grasps.contains(g) {
+            continue;
+        }
+        refits += 1;
+        let original = unchecked
+            .grasps
+            .iter()
+            .find(|u| u.object_id == g.object_id && u.view == g.view && u.pixel == g.pixel)
+            .expect("a re-fit of a decoded grasp");
+        assert_eq!(g.quality, original.quality);
+        assert!(
+            g.width_m > original.width_m + 0.01 && g.width_m <= options.gripper.max_width_m,
+            "re-fitted from {} m to {} m",
+            original.width_m,
+            g.width_m
+        );
+        // Moved along the closing direction only, within the original opening.
+        let moved = g.world_from_grasp.translation.vector - original.world_from_grasp.translation.vector;
+        let closing = original.world_from_grasp.rotation * Vector3::x();
+        assert!((moved - closing * moved.dot(&closing)).norm() < 1e-9);
+        assert!(moved.norm() <= original.width_m / 2.0 + 1e-9);
+        assert_eq!(g.world_from_grasp.rotation, original.world_from_grasp.rotation);
+    }
+    assert_eq!(
+        refits,
+        refused.refused_for_collision - fitted.refused_for_collision
+    );
 }
