@@ -7,8 +7,8 @@ use std::time::{Duration, Instant};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::decode::{
-    DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, Vetted, ViewPlacement, decode_view, fit_opening,
-    hand_collides, rank_grasps_vetted,
+    DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, ViewPlacement, decode_view, fit_opening,
+    hand_collides, rank_grasps_accepted,
 };
 use crate::error::{Error, Result};
 use crate::geometry::Workspace;
@@ -417,7 +417,7 @@ impl Planner {
                 points: &o.points,
             })
             .collect();
-        let (ranked, refused_for_collision) = rank_grasps_vetted(
+        let (ranked, refused_for_collision) = rank_grasps_accepted(
             grasps,
             &RankConfig {
                 min_quality: options.min_quality,
@@ -430,28 +430,27 @@ impl Planner {
                     !hand_collides(pose, width, &options.gripper, hand, &table, &obstacles)
                 };
                 if free(&g.world_from_grasp, g.width_m) {
-                    return Vetted::Keep(g);
+                    return Some(g);
                 }
-                // Pads on its own object: open to what was seen of it, check
-                // again, and offer it only after every grasp that passed as it was.
-                let own = objects.iter().position(|o| o.object.id == g.object_id);
-                let fitted = own.filter(|_| hand.fit_opening).and_then(|i| {
-                    fit_opening(
-                        &g.world_from_grasp,
-                        g.width_m,
-                        &options.gripper,
-                        hand,
-                        &obstacles[i],
-                    )
-                });
-                match fitted {
-                    Some((pose, width)) if free(&pose, width) => Vetted::Fallback(Grasp {
-                        world_from_grasp: pose,
-                        width_m: width,
-                        ..g
-                    }),
-                    _ => Vetted::Refuse,
-                }
+                // Pads on its own object: open to what was seen of it, and check again.
+                let own = objects.iter().position(|o| o.object.id == g.object_id)?;
+                let (pose, width) = hand
+                    .fit_opening
+                    .then(|| {
+                        fit_opening(
+                            &g.world_from_grasp,
+                            g.width_m,
+                            &options.gripper,
+                            hand,
+                            &obstacles[own],
+                        )
+                    })
+                    .flatten()?;
+                free(&pose, width).then_some(Grasp {
+                    world_from_grasp: pose,
+                    width_m: width,
+                    ..g
+                })
             },
         );
         let mut debug_views = Vec::new();

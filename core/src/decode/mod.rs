@@ -8,4 +8,4 @@ mod rank;
 pub use collision::{HandConfig, Obstacle, fit_opening, hand_collides};
 pub use grasp::{DecodeConfig, Grasp, ViewPlacement, decode_view, grasp_at};
 pub use peaks::{NEGLIGIBLE_QUALITY, find_peaks, smooth, smoothed_peaks};
-pub use rank::{RankConfig, Vetted, rank_grasps, rank_grasps_vetted};
+pub use rank::{RankConfig, rank_grasps, rank_grasps_accepted};

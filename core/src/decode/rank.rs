@@ -16,29 +16,18 @@ pub struct RankConfig {
 /// Sorts best first (quality, then object id, view, pixel row and column:
 /// a total order, so equal inputs always rank the same) and applies the limits.
 pub fn rank_grasps(grasps: Vec<Grasp>, config: &RankConfig) -> Vec<Grasp> {
-    rank_grasps_vetted(grasps, config, Vetted::Keep).0
+    rank_grasps_accepted(grasps, config, Some).0
 }
 
-/// What a check says of one grasp.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Vetted {
-    /// Keep it, at its rank.
-    Keep(Grasp),
-    /// Keep this one (a repaired form) only after every grasp kept outright.
-    Fallback(Grasp),
-    /// Drop it.
-    Refuse,
-}
-
-/// [`rank_grasps`] with a check: `vet` says of each grasp whether to keep
-/// it, to keep a repaired form after everything kept outright (in rank
-/// order among themselves), or to refuse it. `vet` is asked in rank order,
-/// and only until the list is full, so a costly check runs on few grasps.
-/// Also returns how many were refused.
-pub fn rank_grasps_vetted(
+/// [`rank_grasps`], keeping what `vet` returns for each grasp: the grasp
+/// itself, a repaired one in its place (same rank), or `None` to refuse it.
+/// `vet` is asked in rank order, and only while a grasp could still make
+/// the list, so a costly check runs on few grasps. Also returns how many
+/// were refused.
+pub fn rank_grasps_accepted(
     mut grasps: Vec<Grasp>,
     config: &RankConfig,
-    mut vet: impl FnMut(Grasp) -> Vetted,
+    mut vet: impl FnMut(Grasp) -> Option<Grasp>,
 ) -> (Vec<Grasp>, usize) {
     grasps.retain(|g| g.quality >= config.min_quality);
     grasps.sort_by(|a, b| {
@@ -51,7 +40,6 @@ pub fn rank_grasps_vetted(
     });
     let mut per_object: rustc_hash::FxHashMap<u32, usize> = rustc_hash::FxHashMap::default();
     let mut kept = Vec::with_capacity(config.max_grasps.min(grasps.len()));
-    let mut fallbacks = Vec::new();
     let mut refused = 0;
     for g in grasps {
         if kept.len() == config.max_grasps {
@@ -61,24 +49,12 @@ pub fn rank_grasps_vetted(
         if *n >= config.max_per_object {
             continue;
         }
-        match vet(g) {
-            Vetted::Keep(g) => {
-                *n += 1;
-                kept.push(g);
-            }
-            Vetted::Fallback(g) => fallbacks.push(g),
-            Vetted::Refuse => refused += 1,
-        }
-    }
-    for g in fallbacks {
-        if kept.len() == config.max_grasps {
-            break;
-        }
-        let n = per_object.entry(g.object_id).or_insert(0);
-        if *n < config.max_per_object {
-            *n += 1;
-            kept.push(g);
-        }
+        let Some(g) = vet(g) else {
+            refused += 1;
+            continue;
+        };
+        *n += 1;
+        kept.push(g);
     }
     (kept, refused)
 }
@@ -130,49 +106,31 @@ mod tests {
     }
 
     #[test]
-    fn refused_grasps_make_room_and_fallbacks_come_after_the_kept() {
+    fn refused_grasps_make_room_for_the_next_of_their_object() {
         let grasps = vec![
             grasp(1, 0.9, 1),
             grasp(1, 0.8, 2),
             grasp(1, 0.7, 3),
             grasp(2, 0.6, 4),
-            grasp(2, 0.5, 5),
-            grasp(3, 0.4, 6),
         ];
         let config = RankConfig {
             min_quality: 0.0,
             max_per_object: 2,
-            max_grasps: 4,
+            max_grasps: 3,
         };
         let mut asked = Vec::new();
-        // Refuse pixel 2; pixels 3 and 4 only as widened fallbacks.
-        let (kept, refused) = rank_grasps_vetted(grasps, &config, |mut g| {
+        let (kept, refused) = rank_grasps_accepted(grasps, &config, |mut g| {
             asked.push(g.pixel[0]);
-            match g.pixel[0] {
-                2 => Vetted::Refuse,
-                3 | 4 => {
-                    g.width_m = 0.08;
-                    Vetted::Fallback(g)
-                }
-                _ => Vetted::Keep(g),
+            // Refuse pixel 2; widen pixel 3 (a repair keeps its rank).
+            if g.pixel[0] == 3 {
+                g.width_m = 0.08;
             }
+            (g.pixel[0] != 2).then_some(g)
         });
         let keys: Vec<(u32, f64)> = kept.iter().map(|g| (g.pixel[0], g.width_m)).collect();
-        assert_eq!(keys, vec![(1, 0.05), (5, 0.05), (6, 0.05), (3, 0.08)]);
+        assert_eq!(keys, vec![(1, 0.05), (3, 0.08), (4, 0.05)]);
         assert_eq!(refused, 1);
         // Each grasp was asked about once, in rank order.
-        assert_eq!(asked, vec![1, 2, 3, 4, 5, 6]);
-        // With room for two, the fallbacks never make the list, and the check stops once it is full.
-        let two = RankConfig {
-            max_grasps: 2,
-            ..config
-        };
-        let mut asked = 0;
-        let (kept, _) = rank_grasps_vetted(kept, &two, |g| {
-            asked += 1;
-            Vetted::Keep(g)
-        });
-        assert_eq!(kept.len(), 2);
-        assert_eq!(asked, 2);
+        assert_eq!(asked, vec![1, 2, 3, 4]);
     }
 }
