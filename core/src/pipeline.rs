@@ -7,8 +7,8 @@ use std::time::{Duration, Instant};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::decode::{
-    DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, ViewPlacement, decode_view, fit_opening,
-    hand_collides, rank_grasps_accepted,
+    Collision, DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, ViewPlacement, decode_view,
+    fit_opening, hand_collision, rank_grasps_accepted,
 };
 use crate::error::{Error, Result};
 use crate::geometry::Workspace;
@@ -426,31 +426,28 @@ impl Planner {
             },
             |g| {
                 let hand = &self.config.hand;
-                let free = |pose: &Isometry3<f64>, width: f64| {
-                    !hand_collides(pose, width, &options.gripper, hand, &table, &obstacles)
+                let hit = |pose: &Isometry3<f64>, width: f64| {
+                    hand_collision(pose, width, &options.gripper, hand, &table, &obstacles)
                 };
-                if free(&g.world_from_grasp, g.width_m) {
-                    return Some(g);
-                }
-                // Pads on its own object: open to what was seen of it, and check again.
-                let own = objects.iter().position(|o| o.object.id == g.object_id)?;
-                let (pose, width) = hand
-                    .fit_opening
-                    .then(|| {
-                        fit_opening(
+                match hit(&g.world_from_grasp, g.width_m) {
+                    None => Some(g),
+                    // Pads on its own object: open to what was seen of it, and check again.
+                    Some(Collision::Object(i)) if hand.fit_opening && objects[i].object.id == g.object_id => {
+                        let (pose, width) = fit_opening(
                             &g.world_from_grasp,
                             g.width_m,
                             &options.gripper,
                             hand,
-                            &obstacles[own],
-                        )
-                    })
-                    .flatten()?;
-                free(&pose, width).then_some(Grasp {
-                    world_from_grasp: pose,
-                    width_m: width,
-                    ..g
-                })
+                            &obstacles[i],
+                        )?;
+                        hit(&pose, width).is_none().then_some(Grasp {
+                            world_from_grasp: pose,
+                            width_m: width,
+                            ..g
+                        })
+                    }
+                    Some(_) => None,
+                }
             },
         );
         let mut debug_views = Vec::new();

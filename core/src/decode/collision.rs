@@ -19,7 +19,8 @@
 //! table plane. The object's own points count too: pads that land on the
 //! object are a failed grasp as much as pads that land on its neighbour.
 //!
-//! A grasp refused because its pads would land on its own object gets one
+//! A grasp refused because the hand would land on its own object (the first
+//! thing [`hand_collision`] finds; not the table, not a neighbour) gets one
 //! more chance ([`fit_opening`]): the opening is re-fitted to the object's
 //! points between the pads' paths (centred on them, `fit_clearance_m` of
 //! air each side, never narrower than asked), and the re-fitted grasp is
@@ -138,6 +139,16 @@ pub struct Obstacle<'a> {
     pub points: &'a [[f32; 3]],
 }
 
+/// What a hand hits first: the table is checked before the objects, and
+/// the objects in the order given.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Collision {
+    /// A hand box dips under the table.
+    Table,
+    /// The observed points of `obstacles[i]`.
+    Object(usize),
+}
+
 /// Whether the hand, closing to `width_m` at `world_from_grasp` after its
 /// approach, would hit the observed points of `obstacles` or the table.
 pub fn hand_collides(
@@ -148,8 +159,20 @@ pub fn hand_collides(
     table: &TablePlane,
     obstacles: &[Obstacle<'_>],
 ) -> bool {
+    hand_collision(world_from_grasp, width_m, gripper, hand, table, obstacles).is_some()
+}
+
+/// [`hand_collides`], saying what the hand hits first.
+pub fn hand_collision(
+    world_from_grasp: &Isometry3<f64>,
+    width_m: f64,
+    gripper: &Gripper,
+    hand: &HandConfig,
+    table: &TablePlane,
+    obstacles: &[Obstacle<'_>],
+) -> Option<Collision> {
     if !hand.enabled {
-        return false;
+        return None;
     }
     let preshaped = (width_m + hand.preshape_margin_m)
         .min(gripper.max_width_m)
@@ -167,7 +190,7 @@ pub fn hand_collides(
         .flat_map(GraspBox::corners)
         .any(|c| origin_height + normal_in_grasp.dot(&c) < hand.table_margin_m)
     {
-        return true;
+        return Some(Collision::Table);
     }
     let boxes_f32: Vec<([f32; 3], [f32; 3])> = boxes
         .iter()
@@ -175,7 +198,8 @@ pub fn hand_collides(
         .collect();
     obstacles
         .iter()
-        .any(|o| hits_object(world_from_grasp, &boxes, &boxes_f32, hand.min_points, o))
+        .position(|o| hits_object(world_from_grasp, &boxes, &boxes_f32, hand.min_points, o))
+        .map(Collision::Object)
 }
 
 /// The grasp re-fitted to `object`'s points that lie in the pads' paths
@@ -194,43 +218,104 @@ pub fn fit_opening(
     hand: &HandConfig,
     object: &Obstacle<'_>,
 ) -> Option<(Isometry3<f64>, f64)> {
-    let grasp_from_object = world_from_grasp.inverse() * object.world_from_object;
+    // The pads' paths, as wide as the stroke: wider than that, no fit.
     let half_pad_y = gripper.finger_width_m / 2.0;
-    let deepest = -(gripper.finger_depth_m + hand.approach_m);
-    let mut across: Vec<f64> = object
-        .points
-        .iter()
-        .filter_map(|p| {
-            let g = grasp_from_object * Point3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
-            (g.y.abs() <= half_pad_y && (deepest..=0.0).contains(&g.z)).then_some(g.x)
-        })
+    let paths = GraspBox {
+        lo: Vector3::new(
+            -gripper.max_width_m,
+            -half_pad_y,
+            -(gripper.finger_depth_m + hand.approach_m),
+        ),
+        hi: Vector3::new(gripper.max_width_m, half_pad_y, 0.0),
+    };
+    let seen = SeenFromGrasp::new(world_from_grasp, &[paths], object)?;
+    let (lo, hi) = (paths.lo.map(|v| v as f32), paths.hi.map(|v| v as f32));
+    let mut across: Vec<f32> = seen
+        .points(object)
+        .filter(|g| (0..3).all(|k| g[k] >= lo[k] && g[k] <= hi[k]))
+        .map(|g| g[0])
         .collect();
     if across.len() < hand.min_points.max(1) {
         return None;
     }
-    across.sort_by(f64::total_cmp);
+    across.sort_by(f32::total_cmp);
     let skip = hand.min_points.saturating_sub(1).min((across.len() - 1) / 2);
-    let (lo, hi) = (across[skip], across[across.len() - 1 - skip]);
-    let mode = std::env::var("FITMODE").unwrap_or_default();
-    if mode == "off" {
-        return None;
-    }
-    let (middle, width) = if mode == "sym" {
-        (
-            0.0,
-            (2.0 * lo.abs().max(hi.abs()) + 2.0 * hand.fit_clearance_m).max(width_m),
-        )
-    } else {
-        (
-            (lo + hi) / 2.0,
-            (hi - lo + 2.0 * hand.fit_clearance_m).max(width_m),
-        )
-    };
+    let (lo, hi) = (
+        f64::from(across[skip]),
+        f64::from(across[across.len() - 1 - skip]),
+    );
+    let middle = (lo + hi) / 2.0;
+    let width = (hi - lo + 2.0 * hand.fit_clearance_m).max(width_m);
     if width > gripper.max_width_m || middle.abs() > width_m / 2.0 {
         return None;
     }
     let moved = world_from_grasp * nalgebra::Translation3::new(middle, 0.0, 0.0);
     Some((moved, width))
+}
+
+/// One object's points as seen from a grasp, only those near some boxes.
+///
+/// Each box's bounding box in the object frame (centre moved, half extents
+/// through |R|) is cut to the object's box; an object that none reaches is
+/// skipped, and a point in none of them costs a few compares and is not
+/// moved into the grasp frame (f32).
+struct SeenFromGrasp {
+    near: Vec<([f32; 3], [f32; 3])>,
+    rotation: nalgebra::Matrix3<f32>,
+    translation: Vector3<f32>,
+}
+
+impl SeenFromGrasp {
+    /// `None` when no box reaches the object's box.
+    fn new(world_from_grasp: &Isometry3<f64>, boxes: &[GraspBox], object: &Obstacle<'_>) -> Option<Self> {
+        let object_from_grasp = object.world_from_object.inverse() * world_from_grasp;
+        let abs_rotation = object_from_grasp.rotation.to_rotation_matrix().into_inner().abs();
+        let near: Vec<([f32; 3], [f32; 3])> = boxes
+            .iter()
+            .filter_map(|b| {
+                let centre = object_from_grasp * Point3::from((b.lo + b.hi) / 2.0);
+                let half = abs_rotation * ((b.hi - b.lo) / 2.0);
+                let lo = (centre.coords - half).sup(object.extent_min_m);
+                let hi = (centre.coords + half).inf(object.extent_max_m);
+                (0..3)
+                    .all(|k| lo[k] <= hi[k])
+                    .then(|| (lo.map(|v| v as f32).into(), hi.map(|v| v as f32).into()))
+            })
+            .collect();
+        if near.is_empty() {
+            return None;
+        }
+        let grasp_from_object = object_from_grasp.inverse();
+        Some(Self {
+            near,
+            rotation: grasp_from_object
+                .rotation
+                .to_rotation_matrix()
+                .into_inner()
+                .map(|v| v as f32),
+            translation: grasp_from_object.translation.vector.map(|v| v as f32),
+        })
+    }
+
+    /// The object's points near a box, in the grasp frame.
+    fn points<'a>(&'a self, object: &'a Obstacle<'_>) -> impl Iterator<Item = [f32; 3]> + 'a {
+        let (r, t) = (&self.rotation, &self.translation);
+        object
+            .points
+            .iter()
+            .filter(|p| {
+                self.near
+                    .iter()
+                    .any(|(lo, hi)| (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k]))
+            })
+            .map(move |p| {
+                [
+                    r[(0, 0)] * p[0] + r[(0, 1)] * p[1] + r[(0, 2)] * p[2] + t.x,
+                    r[(1, 0)] * p[0] + r[(1, 1)] * p[1] + r[(1, 2)] * p[2] + t.y,
+                    r[(2, 0)] * p[0] + r[(2, 1)] * p[1] + r[(2, 2)] * p[2] + t.z,
+                ]
+            })
+    }
 }
 
 /// At least `min_points` of `object`'s points inside one of `boxes`.
@@ -241,56 +326,19 @@ fn hits_object(
     min_points: usize,
     object: &Obstacle<'_>,
 ) -> bool {
-    let object_from_grasp = object.world_from_object.inverse() * world_from_grasp;
-    // Each hand box's bounding box in the object frame (centre moved, half
-    // extents through |R|), cut to the object's box; an object that none
-    // reaches is skipped, and a point in none of them is not moved.
-    let rotation = object_from_grasp.rotation.to_rotation_matrix().into_inner();
-    let abs_rotation = rotation.abs();
-    let mut near: Vec<([f32; 3], [f32; 3])> = Vec::with_capacity(boxes.len());
-    for b in boxes {
-        let centre = object_from_grasp * Point3::from((b.lo + b.hi) / 2.0);
-        let half = abs_rotation * ((b.hi - b.lo) / 2.0);
-        let lo = (centre.coords - half).sup(object.extent_min_m);
-        let hi = (centre.coords + half).inf(object.extent_max_m);
-        if (0..3).all(|k| lo[k] <= hi[k]) {
-            near.push((lo.map(|v| v as f32).into(), hi.map(|v| v as f32).into()));
-        }
-    }
-    if near.is_empty() {
+    let Some(seen) = SeenFromGrasp::new(world_from_grasp, boxes, object) else {
         return false;
-    }
-    let grasp_from_object = object_from_grasp.inverse();
-    let r = grasp_from_object
-        .rotation
-        .to_rotation_matrix()
-        .into_inner()
-        .map(|v| v as f32);
-    let t = grasp_from_object.translation.vector.map(|v| v as f32);
-    let mut inside = 0;
-    for p in object.points {
-        if !near
-            .iter()
-            .any(|(lo, hi)| (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k]))
-        {
-            continue;
-        }
-        let g = [
-            r[(0, 0)] * p[0] + r[(0, 1)] * p[1] + r[(0, 2)] * p[2] + t.x,
-            r[(1, 0)] * p[0] + r[(1, 1)] * p[1] + r[(1, 2)] * p[2] + t.y,
-            r[(2, 0)] * p[0] + r[(2, 1)] * p[1] + r[(2, 2)] * p[2] + t.z,
-        ];
-        if boxes_f32
-            .iter()
-            .any(|(blo, bhi)| (0..3).all(|k| g[k] >= blo[k] && g[k] <= bhi[k]))
-        {
-            inside += 1;
-            if inside >= min_points {
-                return true;
-            }
-        }
-    }
-    false
+    };
+    let enough = min_points.max(1);
+    seen.points(object)
+        .filter(|g| {
+            boxes_f32
+                .iter()
+                .any(|(lo, hi)| (0..3).all(|k| g[k] >= lo[k] && g[k] <= hi[k]))
+        })
+        .take(enough)
+        .count()
+        >= enough
 }
 
 #[cfg(test)]
@@ -447,6 +495,17 @@ mod tests {
             );
             assert_eq!(collides(&grasp, width, &hand, &table, &scene), want);
         }
+        // Apart, each is its own obstacle: opened to 6 cm the hand hits the
+        // neighbour (the second), closed to 3 cm the box itself (the first).
+        let own = as_obstacle(&block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]));
+        let neighbour = as_obstacle(&block([0.035, -0.02, 0.0], [0.07, 0.02, 0.06]));
+        let both = [
+            obstacle_of(&world_from_object, &own),
+            obstacle_of(&world_from_object, &neighbour),
+        ];
+        let hit = |width: f64| hand_collision(&grasp, width, &gripper, &hand, &table, &both);
+        assert_eq!(hit(0.06), Some(Collision::Object(1)));
+        assert_eq!(hit(0.03), Some(Collision::Object(0)));
         // The box alone, opened to 6 cm: free in either frame.
         let single = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
         let framed = as_obstacle(&single);
@@ -521,6 +580,11 @@ mod tests {
         // Fingertips 1 cm under the table top.
         let grasp = top_down(0.0, 0.0, -0.01);
         assert!(collides(&grasp, 0.06, &hand, &table_at(0.0), &[]));
+        let gripper = Gripper::default();
+        assert_eq!(
+            hand_collision(&grasp, 0.06, &gripper, &hand, &table_at(0.0), &[]),
+            Some(Collision::Table)
+        );
         assert!(!collides(&grasp, 0.06, &hand, &table_at(-0.05), &[]));
     }
 }

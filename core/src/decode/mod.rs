@@ -5,7 +5,7 @@ mod grasp;
 mod peaks;
 mod rank;
 
-pub use collision::{HandConfig, Obstacle, fit_opening, hand_collides};
+pub use collision::{Collision, HandConfig, Obstacle, fit_opening, hand_collides, hand_collision};
 pub use grasp::{DecodeConfig, Grasp, ViewPlacement, decode_view, grasp_at};
 pub use peaks::{NEGLIGIBLE_QUALITY, find_peaks, smooth, smoothed_peaks};
 pub use rank::{RankConfig, rank_grasps, rank_grasps_accepted};
