@@ -214,39 +214,11 @@ fn deterministic() {
 fn the_hand_check_refuses_grasps_between_close_neighbours() {
     let scene = grid_scene(0.0, 6, 3, 0.07);
     let camera = Camera::orbit(Vector3::zeros(), 0.8, 55.0, -90.0);
-    let rendered = scene::render(&scene, &camera);
-    let bytes = rendered.depth_bytes();
-    let input = camera.scene_input(&bytes, table_workspace(&scene));
-    let options = PlanOptions {
-        view_policy: ViewPolicy::All,
-        max_grasps: 1000,
-        min_quality: 0.0,
-        ..PlanOptions::default()
-    };
-    let mut net = MomentsNet::default();
-    let plan_with = |hand: HandConfig, net: &mut MomentsNet| {
-        // No per-object limit, so that the checked grasps are a subset.
-        let config = PlannerConfig {
-            hand,
-            max_grasps_per_object: 100,
-            ..PlannerConfig::default()
-        };
-        let planner = Planner::new(config, net.contract().clone()).expect("planner");
-        planner.plan(&input, &options, net).expect("plan")
-    };
-    let checked = plan_with(
-        HandConfig {
-            fit_opening: false,
-            ..HandConfig::default()
-        },
-        &mut net,
-    );
-    let unchecked = plan_with(
-        HandConfig {
-            enabled: false,
-            ..HandConfig::default()
-        },
-        &mut net,
+    let [checked, unchecked] = plans_with_hands(
+        &scene,
+        &camera,
+        &mut MomentsNet::default(),
+        [hand_without_fit(), hand_off()],
     );
     assert_eq!(unchecked.refused_for_collision, 0);
     assert!(
@@ -276,41 +248,14 @@ fn openings_too_narrow_for_the_object_are_re_fitted() {
         shapes: vec![Shape::standing_box(0.0, 0.0, 0.0, 0.4, [0.06, 0.04, 0.10])],
     };
     let camera = Camera::orbit(Vector3::zeros(), 0.8, 50.0, -90.0);
-    let rendered = scene::render(&scene, &camera);
-    let bytes = rendered.depth_bytes();
-    let input = camera.scene_input(&bytes, table_workspace(&scene));
-    let options = PlanOptions {
-        view_policy: ViewPolicy::All,
-        max_grasps: 1000,
-        min_quality: 0.0,
-        ..PlanOptions::default()
-    };
     // The baseline's openings, 1.5 cm short of the object on each side.
     let mut net = MomentsNet::default();
     net.margin_m = -0.015;
-    let plan_with = |hand: HandConfig, net: &mut MomentsNet| {
-        let config = PlannerConfig {
-            hand,
-            max_grasps_per_object: 1000,
-            ..PlannerConfig::default()
-        };
-        let planner = Planner::new(config, net.contract().clone()).expect("planner");
-        planner.plan(&input, &options, net).expect("plan")
-    };
-    let refused = plan_with(
-        HandConfig {
-            fit_opening: false,
-            ..HandConfig::default()
-        },
+    let [refused, fitted, unchecked] = plans_with_hands(
+        &scene,
+        &camera,
         &mut net,
-    );
-    let fitted = plan_with(HandConfig::default(), &mut net);
-    let unchecked = plan_with(
-        HandConfig {
-            enabled: false,
-            ..HandConfig::default()
-        },
-        &mut net,
+        [hand_without_fit(), HandConfig::default(), hand_off()],
     );
     assert!(
         refused.refused_for_collision > 0,
@@ -335,7 +280,7 @@ fn openings_too_narrow_for_the_object_are_re_fitted() {
             .expect("a re-fit of a decoded grasp");
         assert_eq!(g.quality, original.quality);
         assert!(
-            g.width_m > original.width_m + 0.01 && g.width_m <= options.gripper.max_width_m,
+            g.width_m > original.width_m + 0.01 && g.width_m <= PlanOptions::default().gripper.max_width_m,
             "re-fitted from {} m to {} m",
             original.width_m,
             g.width_m
@@ -351,4 +296,49 @@ fn openings_too_narrow_for_the_object_are_re_fitted() {
         refits,
         refused.refused_for_collision - fitted.refused_for_collision
     );
+}
+
+/// The hand check with its opening re-fit off.
+fn hand_without_fit() -> HandConfig {
+    HandConfig {
+        fit_opening: false,
+        ..HandConfig::default()
+    }
+}
+
+/// No hand check at all.
+fn hand_off() -> HandConfig {
+    HandConfig {
+        enabled: false,
+        ..HandConfig::default()
+    }
+}
+
+/// `scene` as `camera` sees it, planned once per hand setting (in order)
+/// with every view, no quality floor and no per-object limit, so that the
+/// plans differ only by what the hand check did.
+fn plans_with_hands<const N: usize>(
+    scene: &Scene,
+    camera: &Camera,
+    net: &mut MomentsNet,
+    hands: [HandConfig; N],
+) -> [mvgrasp_core::Plan; N] {
+    let rendered = scene::render(scene, camera);
+    let bytes = rendered.depth_bytes();
+    let input = camera.scene_input(&bytes, table_workspace(scene));
+    let options = PlanOptions {
+        view_policy: ViewPolicy::All,
+        max_grasps: 1000,
+        min_quality: 0.0,
+        ..PlanOptions::default()
+    };
+    hands.map(|hand| {
+        let config = PlannerConfig {
+            hand,
+            max_grasps_per_object: 1000,
+            ..PlannerConfig::default()
+        };
+        let planner = Planner::new(config, net.contract().clone()).expect("planner");
+        planner.plan(&input, &options, net).expect("plan")
+    })
 }
