@@ -27,6 +27,7 @@
 //! `fell_off`, not removed). An attempt stopped by the approach check
 //! leaves the scene as it was (a real arm's planner would not move there).
 
+use std::collections::BTreeMap;
 use std::time::Instant;
 
 use mvgrasp_client::request::{depth_request, pose_from_message};
@@ -38,7 +39,7 @@ use parry3d::math::Pose;
 
 use crate::camera::{Camera, Frame, NoiseModel, render};
 use crate::error::{Error, Result};
-use crate::grasp::{GraspLabel, GripperModel, label_grasp};
+use crate::grasp::{GraspLabel, GripperModel, HandPart, Obstacle, label_grasp};
 use crate::objects::{Catalog, Family};
 use crate::physics::{Basket, TrialConfig, TrialOutcome, run_trial};
 use crate::pile::{SettleConfig, settle};
@@ -175,6 +176,48 @@ pub struct Attempt {
     pub quality: f32,
     /// `None`: a success.
     pub failure: Option<Failure>,
+    /// For a collision on approach: what the hand hit, and where.
+    pub collision: Option<CollisionSite>,
+}
+
+/// What a collision on approach hit, with which part of the hand, and
+/// whether at the grasp pose or on the way in to it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct CollisionSite {
+    /// What was hit (a neighbour's index is not kept).
+    pub obstacle: Obstacle,
+    /// Which part hit it.
+    pub part: HandPart,
+    /// True when the hand was still 2.5-10 cm back along the approach.
+    pub on_the_way_in: bool,
+}
+
+impl CollisionSite {
+    fn new(obstacle: Obstacle, part: HandPart, back_m: f64) -> Self {
+        Self {
+            obstacle: match obstacle {
+                Obstacle::Neighbour(_) => Obstacle::Neighbour(0),
+                other => other,
+            },
+            part,
+            on_the_way_in: back_m > 0.0,
+        }
+    }
+
+    /// Report name, e.g. "a neighbour (palm), on the way in".
+    pub fn name(&self) -> String {
+        let what = match self.obstacle {
+            Obstacle::Table => "the table",
+            Obstacle::Target => "the object",
+            Obstacle::Neighbour(_) => "a neighbour",
+        };
+        let when = if self.on_the_way_in {
+            "on the way in"
+        } else {
+            "at the grasp"
+        };
+        format!("{what} ({}), {when}", self.part.name())
+    }
 }
 
 /// One episode.
@@ -454,10 +497,14 @@ pub fn run_episode(
             episode.last_plan_ms = Some(plan_ms);
             break;
         };
-        let failure = match scene.object_at(&grasp.object_centroid, 0.01) {
-            None => Some(Failure::ObjectMissed),
+        let (failure, collision) = match scene.object_at(&grasp.object_centroid, 0.01) {
+            None => (Some(Failure::ObjectMissed), None),
             Some(target) => {
-                let (failure, poses) = try_grasp(&scene, target, &grasp, config);
+                let (tried, poses) = try_grasp(&scene, target, &grasp, config);
+                let (failure, collision) = match tried {
+                    Tried::Collided(site) => (Some(Failure::CollisionOnApproach), Some(site)),
+                    Tried::Trial(failure) => (failure, None),
+                };
                 // The scene as the trial left it (a pushed neighbour stays
                 // pushed, a dropped object lies where it fell), the target
                 // gone if it reached the basket; then what still moves or
@@ -473,7 +520,7 @@ pub fn run_episode(
                     }
                     episode.fell_off += settle(&mut scene, &SettleConfig::default());
                 }
-                failure
+                (failure, collision)
             }
         };
         episode.attempts.push(Attempt {
@@ -482,20 +529,29 @@ pub fn run_episode(
             width_m: grasp.width_m,
             quality: grasp.quality,
             failure,
+            collision,
         });
     }
     Ok(episode)
 }
 
+/// What [`try_grasp`] came to.
+enum Tried {
+    /// The approach check stopped it.
+    Collided(CollisionSite),
+    /// The physics trial ran: its failure, if any.
+    Trial(Option<Failure>),
+}
+
 /// The approach check, then the physics trial, of `grasp` on object
-/// `target`: the failure, if any, and where the trial left every object
+/// `target`: what it came to, and where the trial left every object
 /// (`None` when the approach check stopped it before any physics).
 fn try_grasp(
     scene: &Scene,
     target: usize,
     grasp: &PlannedGrasp,
     config: &EpisodeConfig,
-) -> (Option<Failure>, Option<Vec<Pose>>) {
+) -> (Tried, Option<Vec<Pose>>) {
     let pose = grasp.world_from_grasp;
     let approach = pose.rotation * Vector3::z();
     let mut final_label = None;
@@ -508,10 +564,10 @@ fn try_grasp(
             (grasp.width_m + APPROACH_MARGIN_M).min(f64::from(config.gripper.max_width_m))
         };
         let label = label_grasp(scene, target, &at, width, &config.gripper);
-        if let GraspLabel::Collision { what } = &label
-            && (back > 0.0 || !what.contains("closing"))
+        if let GraspLabel::Collision { obstacle, part } = label
+            && (back > 0.0 || part != HandPart::Closing)
         {
-            return (Some(Failure::CollisionOnApproach), None);
+            return (Tried::Collided(CollisionSite::new(obstacle, part, back)), None);
         }
         if back == 0.0 {
             final_label = Some(label);
@@ -533,7 +589,7 @@ fn try_grasp(
             _ => Some(Failure::ObjectMissed),
         },
     };
-    (failure, Some(trial.poses))
+    (Tried::Trial(failure), Some(trial.poses))
 }
 
 /// Episodes of one scenario under one setting, summed.
@@ -557,6 +613,8 @@ pub struct Summary {
     pub successes: usize,
     /// Failed attempts by cause, in [`Failure::ALL`] order.
     pub failures: [usize; 4],
+    /// Collisions on approach by where they happened.
+    pub collisions: BTreeMap<CollisionSite, usize>,
     /// Episodes that ended with no grasp above tau.
     pub ended_without_grasp: usize,
     /// Episodes that cleared the table.
@@ -569,10 +627,14 @@ impl Summary {
     /// Sums `episodes` (all of one scenario and setting).
     pub fn of(scenario: Scenario, setting: &Setting, episodes: &[Episode]) -> Self {
         let mut failures = [0; 4];
+        let mut collisions = BTreeMap::new();
         let mut times: Vec<f64> = Vec::new();
         for e in episodes {
             for a in &e.attempts {
                 times.push(a.plan_ms);
+                if let Some(site) = a.collision {
+                    *collisions.entry(site).or_insert(0) += 1;
+                }
                 if let Some(f) = a.failure {
                     failures[Failure::ALL.iter().position(|&x| x == f).unwrap_or(0)] += 1;
                 }
@@ -597,6 +659,7 @@ impl Summary {
             attempts: episodes.iter().map(|e| e.attempts.len()).sum(),
             successes: episodes.iter().map(Episode::successes).sum(),
             failures,
+            collisions,
             ended_without_grasp: episodes.iter().filter(|e| e.end == End::NoGraspAboveTau).count(),
             cleared: episodes.iter().filter(|e| e.end == End::Cleared).count(),
             plan_ms: [pct(0.5), pct(0.9)],
@@ -621,6 +684,31 @@ pub fn paper_numbers(scenario: Scenario) -> &'static str {
         Scenario::Packed => "0.84 / 0.88 (tau 0.8)",
         Scenario::Pile => "0.75 / 0.89 (tau 0.8)",
         Scenario::Clutter => "removal >= 0.90 (real robot: 9 of 10 runs cleared)",
+    }
+}
+
+/// A Markdown list of where the collisions on approach of `summaries`
+/// happened, most frequent first (empty when there were none).
+pub fn collision_list(summaries: &[Summary]) -> String {
+    let mut out = String::new();
+    for s in summaries.iter().filter(|s| !s.collisions.is_empty()) {
+        let mut sites: Vec<(&CollisionSite, &usize)> = s.collisions.iter().collect();
+        sites.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+        let sites: Vec<String> = sites.iter().map(|(k, n)| format!("{} {n}", k.name())).collect();
+        out.push_str(&format!(
+            "- {}, {}: {}\n",
+            s.scenario.name(),
+            s.setting,
+            sites.join("; ")
+        ));
+    }
+    if out.is_empty() {
+        out
+    } else {
+        format!(
+            "Collisions on approach, by what the hand hit (pads or palm; \"closing\": a pad met a neighbour \
+             before the object) and where (at the grasp pose, or 2.5-10 cm back on the way in):\n\n{out}"
+        )
     }
 }
 

@@ -10,8 +10,8 @@ use mvgrasp_core::{GraspNet, ModelContract, Planner, PlannerConfig};
 use mvgrasp_server::settings::ModelSettings;
 use mvgrasp_sim::camera::render;
 use mvgrasp_sim::eval::{
-    Episode, EpisodeConfig, Failure, GraspSource, InProcess, Remote, Setting, Summary, episode_scene,
-    markdown_table, run_episode,
+    Episode, EpisodeConfig, Failure, GraspSource, InProcess, Remote, Setting, Summary, collision_list,
+    episode_scene, markdown_table, run_episode,
 };
 use mvgrasp_sim::files::{DrawnGrasp, write_grasp_snapshot};
 use mvgrasp_sim::scene::Scenario;
@@ -201,6 +201,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
     }
     let command: Vec<String> = std::env::args().collect();
     let table = markdown_table(&summaries);
+    let collisions = collision_list(&summaries);
     let objects_line = format!(" Objects drawn from: {}.", config.catalog.names().join(", "));
     let report = format!(
         "# Clear-the-table in simulation\n\n- revision: `{}`\n- model: `{}` ({}, data {}), {} px views of {} mm\n- command: `{}`\n- seeds {}..{} per scenario, the same scenes and cameras for every setting; {:.0} s on {} threads\n\n{table}\n\
@@ -209,7 +210,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
          physics trial the scene keeps what the trial did to it (pushed neighbours, dropped objects) and \
          settles; objects knocked off the table are not removed. `pile`: 4-6 objects dropped \
          into a box, settled in rapier3d, the box lifted away. `clutter` is 15-20 objects \
-         spread over the table.{}\n{}",
+         spread over the table.{}\n{}{}",
         git_revision(),
         model_name,
         contract.model_version,
@@ -222,6 +223,11 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         started.elapsed().as_secs_f64(),
         rayon::current_num_threads(),
         objects_line,
+        if collisions.is_empty() {
+            String::new()
+        } else {
+            format!("\n{collisions}")
+        },
         if snapshot_files.is_empty() {
             String::new()
         } else {
@@ -246,6 +252,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
             "objects": s.objects, "removed": s.removed, "fell_off": s.fell_off, "attempts": s.attempts, "successes": s.successes,
             "success_rate": s.success_rate(), "removal_rate": s.removal_rate(),
             "failures": Failure::ALL.iter().zip(s.failures).map(|(f, n)| (f.name(), n)).collect::<std::collections::BTreeMap<_, _>>(),
+            "collisions_on_approach": s.collisions.iter().map(|(site, n)| (site.name(), *n)).collect::<std::collections::BTreeMap<_, _>>(),
             "ended_without_grasp": s.ended_without_grasp, "cleared": s.cleared,
             "plan_ms_p50": s.plan_ms[0], "plan_ms_p90": s.plan_ms[1],
         })).collect::<Vec<_>>(),

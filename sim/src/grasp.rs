@@ -89,11 +89,13 @@ pub enum GraspLabel {
     },
     /// The object is wider than the stroke where the pads are.
     TooWide,
-    /// A pad or the palm hits something before closing (`what`: table,
-    /// object, neighbour N), or a pad meets a neighbour first while closing.
+    /// A pad or the palm hits something before closing, or a pad meets a
+    /// neighbour first while closing.
     Collision {
         /// What was hit.
-        what: String,
+        obstacle: Obstacle,
+        /// By which part of the hand.
+        part: HandPart,
     },
     /// The pads close on nothing of the object.
     Missed,
@@ -102,6 +104,52 @@ pub enum GraspLabel {
         /// The larger angle between a contact normal and the closing direction (deg).
         worst_angle_deg: f32,
     },
+}
+
+/// What a hand collided with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Obstacle {
+    /// The table top.
+    Table,
+    /// The object being grasped.
+    Target,
+    /// Another object (its index in the scene).
+    Neighbour(usize),
+}
+
+/// The part of the hand that collided.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum HandPart {
+    /// The pad on the -x side.
+    LeftPad,
+    /// The pad on the +x side.
+    RightPad,
+    /// The gripper body behind the pads.
+    Palm,
+    /// A pad while closing (it met a neighbour before the object).
+    Closing,
+}
+
+impl HandPart {
+    /// Report name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::LeftPad => "left pad",
+            Self::RightPad => "right pad",
+            Self::Palm => "palm",
+            Self::Closing => "closing",
+        }
+    }
+}
+
+impl std::fmt::Display for Obstacle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Table => write!(f, "table"),
+            Self::Target => write!(f, "the object"),
+            Self::Neighbour(i) => write!(f, "neighbour {i}"),
+        }
+    }
 }
 
 impl GraspLabel {
@@ -163,27 +211,28 @@ pub fn label_grasp(
 
     // 1. Open.
     for (name, part_pose, part) in [
-        ("left pad", pad_at(-1.0), pad),
-        ("right pad", pad_at(1.0), pad),
-        ("palm", palm_pose, palm),
+        (HandPart::LeftPad, pad_at(-1.0), pad),
+        (HandPart::RightPad, pad_at(1.0), pad),
+        (HandPart::Palm, palm_pose, palm),
     ] {
         if hits(&part_pose, &part, &table_pose, &table) {
             return GraspLabel::Collision {
-                what: format!("table ({name})"),
+                obstacle: Obstacle::Table,
+                part: name,
             };
         }
         for (i, o) in scene.objects.iter().enumerate() {
             if hits(&part_pose, &part, &o.world_from_object, o.model.shape.as_ref()) {
-                if i == target && name != "palm" && opening >= g.max_width_m {
+                if i == target && name != HandPart::Palm && opening >= g.max_width_m {
                     return GraspLabel::TooWide;
                 }
-                let what = if i == target {
-                    "the object".to_owned()
-                } else {
-                    format!("neighbour {i}")
-                };
                 return GraspLabel::Collision {
-                    what: format!("{what} ({name})"),
+                    obstacle: if i == target {
+                        Obstacle::Target
+                    } else {
+                        Obstacle::Neighbour(i)
+                    },
+                    part: name,
                 };
             }
         }
@@ -220,7 +269,8 @@ pub fn label_grasp(
                     }
                     Some(i) => {
                         return GraspLabel::Collision {
-                            what: format!("neighbour {i} (closing)"),
+                            obstacle: Obstacle::Neighbour(i),
+                            part: HandPart::Closing,
                         };
                     }
                     None => {}

@@ -5,7 +5,10 @@
         [--device cuda] [--schedule cosine]
 
 Splits 80/20 by object instance, trains with MSE on the four maps and Adam
-(lr 1e-3; `--init RUN --lr 1e-4` continues a run as a second, lower-rate stage), augments each training view (augment.py), and after every epoch
+(lr 1e-3; `--init RUN --lr 1e-4` continues a run as a second, lower-rate stage).
+`--positive-weight W` weights the squared error at pixels whose target
+quality is above 0 (the painted positives) W times (1: plain MSE, the
+paper's loss). Augments each training view (augment.py), and after every epoch
 evaluates the paper's grasp accuracy on the held-out instances. On a GPU
 (`--device cuda`) the training views sit in device memory and whole batches
 are augmented there (augment_torch.py); on the CPU each view is augmented
@@ -59,6 +62,16 @@ def evaluate(model, ds, indices, batch=128, device="cpu"):
     return result
 
 
+def weighted_mse(pred, target, positive_weight=1.0):
+    """Mean squared error over every pixel and channel, the error at pixels
+    with a positive target quality counted `positive_weight` times."""
+    error = (pred - target) ** 2
+    if positive_weight == 1.0:
+        return torch.mean(error)
+    weight = 1.0 + (positive_weight - 1.0) * (target[:, :1] > 0).to(error.dtype)
+    return torch.mean(weight * error)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", required=True)
@@ -71,6 +84,8 @@ def main(argv=None):
     p.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
     p.add_argument("--eval-views", type=int, default=1500, help="held-out views evaluated per epoch (all at the end)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--positive-weight", type=float, default=1.0,
+                   help="weight of the squared error at positive pixels (1: plain MSE)")
     p.add_argument("--device", default="cpu")
     p.add_argument("--augment", choices=("auto", "numpy", "torch"), default="auto",
                    help="numpy: per view on the CPU; torch: whole batches on --device, data held there (auto: torch off the CPU)")
@@ -152,7 +167,7 @@ def main(argv=None):
                 for group in optimiser.param_groups:
                     group["lr"] = args.lr * (0.02 + 0.98 * 0.5 * (1 + np.cos(np.pi * share)))
             optimiser.zero_grad()
-            loss = torch.mean((model(x) - y) ** 2)
+            loss = weighted_mse(model(x), y, args.positive_weight)
             loss.backward()
             optimiser.step()
             losses.append(loss.detach())

@@ -157,3 +157,19 @@ class Network(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+@unittest.skipIf(MISSING, REASON)
+class Loss(unittest.TestCase):
+    def test_positive_weight_scales_only_the_error_at_positive_pixels(self):
+        import torch
+        from mvgrasp_train.train import weighted_mse
+        target = torch.zeros(1, 4, 2, 2)
+        target[0, 0, 0, 0] = 0.6  # one positive pixel
+        pred = torch.full((1, 4, 2, 2), 0.1)
+        plain = weighted_mse(pred, target)
+        self.assertAlmostEqual(float(plain), float(((pred - target) ** 2).mean()), places=7)
+        # The positive pixel's four channels: 0.5^2 + 3 x 0.1^2; the other 12 entries 0.1^2 each.
+        positive, rest = 0.25 + 3 * 0.01, 12 * 0.01
+        self.assertAlmostEqual(float(weighted_mse(pred, target, 1.0)), (positive + rest) / 16, places=6)
+        self.assertAlmostEqual(float(weighted_mse(pred, target, 10.0)), (10 * positive + rest) / 16, places=6)

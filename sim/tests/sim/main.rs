@@ -198,7 +198,7 @@ fn the_pipeline_finds_simulated_objects() {
 }
 
 mod grasp_labels {
-    use mvgrasp_sim::grasp::{GraspLabel, GripperModel, label_grasp};
+    use mvgrasp_sim::grasp::{GraspLabel, GripperModel, HandPart, Obstacle, label_grasp};
     use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion, Vector3 as V3};
 
     use super::*;
@@ -273,13 +273,25 @@ mod grasp_labels {
         // So low the fingertips are in the table.
         let label = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, -0.005, V3::y()), 0.04, &g);
         assert!(
-            matches!(&label, GraspLabel::Collision { what } if what.starts_with("table")),
+            matches!(
+                &label,
+                GraspLabel::Collision {
+                    obstacle: Obstacle::Table,
+                    ..
+                }
+            ),
             "{label:?}"
         );
         // 1 cm above the table the pads clear it, but the palm meets the box top.
         let label = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, 0.01, V3::y()), 0.04, &g);
         assert!(
-            matches!(&label, GraspLabel::Collision { what } if what == "the object (palm)"),
+            matches!(
+                &label,
+                GraspLabel::Collision {
+                    obstacle: Obstacle::Target,
+                    part: HandPart::Palm
+                }
+            ),
             "{label:?}"
         );
     }
@@ -298,7 +310,13 @@ mod grasp_labels {
         let g = GripperModel::robotiq_2f_140();
         let label = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, 0.08, V3::y()), 0.04, &g);
         assert!(
-            matches!(&label, GraspLabel::Collision { what } if what.contains("neighbour 1")),
+            matches!(
+                &label,
+                GraspLabel::Collision {
+                    obstacle: Obstacle::Neighbour(1),
+                    ..
+                }
+            ),
             "{label:?}"
         );
     }
@@ -553,9 +571,10 @@ mod physics {
 mod eval {
     use mvgrasp_core::{GraspNet, MomentsNet, Planner, PlannerConfig, ViewPolicy};
     use mvgrasp_sim::eval::{
-        Attempt, End, Episode, EpisodeConfig, Failure, InProcess, Setting, Summary, markdown_table,
-        run_episode,
+        Attempt, CollisionSite, End, Episode, EpisodeConfig, Failure, InProcess, Setting, Summary,
+        collision_list, markdown_table, run_episode,
     };
+    use mvgrasp_sim::grasp::{HandPart, Obstacle};
     use mvgrasp_sim::scene::Scenario;
 
     #[test]
@@ -631,6 +650,15 @@ mod eval {
             width_m: 0.05,
             quality: 0.9,
             failure,
+            collision: None,
+        };
+        let collided = |obstacle, part, on_the_way_in| Attempt {
+            collision: Some(CollisionSite {
+                obstacle,
+                part,
+                on_the_way_in,
+            }),
+            ..attempt(Some(Failure::CollisionOnApproach))
         };
         let episodes = vec![
             Episode {
@@ -657,10 +685,10 @@ mod eval {
                 attempts: vec![
                     Attempt {
                         plan_ms: 30.0,
-                        ..attempt(Some(Failure::CollisionOnApproach))
+                        ..collided(Obstacle::Neighbour(0), HandPart::Palm, true)
                     },
-                    attempt(Some(Failure::CollisionOnApproach)),
-                    attempt(Some(Failure::CollisionOnApproach)),
+                    collided(Obstacle::Table, HandPart::LeftPad, false),
+                    collided(Obstacle::Neighbour(0), HandPart::Palm, true),
                 ],
                 end: End::ConsecutiveFailures,
                 last_plan_ms: None,
@@ -676,6 +704,19 @@ mod eval {
         assert!((s.success_rate() - 3.0 / 7.0).abs() < 1e-12);
         assert!((s.removal_rate() - 3.0 / 9.0).abs() < 1e-12);
         assert_eq!(s.failures, [3, 1, 0, 0]);
+        let sites: Vec<(String, usize)> = s.collisions.iter().map(|(k, n)| (k.name(), *n)).collect();
+        assert_eq!(
+            sites,
+            [
+                ("the table (left pad), at the grasp".to_owned(), 1),
+                ("a neighbour (palm), on the way in".to_owned(), 2)
+            ]
+        );
+        let list = collision_list(std::slice::from_ref(&s));
+        assert!(
+            list.contains("- packed, entropy:0.8: a neighbour (palm), on the way in 2; the table (left pad), at the grasp 1"),
+            "{list}"
+        );
         assert_eq!((s.ended_without_grasp, s.cleared), (1, 0));
         // Nine planning times (seven of 10 ms, two of 30 ms): p50 10, p90 30.
         assert_eq!(s.plan_ms, [10.0, 30.0]);
