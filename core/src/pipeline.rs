@@ -426,13 +426,14 @@ impl Planner {
             },
             |g| {
                 let hand = &self.config.hand;
+                let own = objects.iter().position(|o| o.object.id == g.object_id);
                 let hit = |pose: &Isometry3<f64>, width: f64| {
-                    hand_collision(pose, width, &options.gripper, hand, &table, &obstacles)
+                    hand_collision(pose, width, &options.gripper, hand, &table, &obstacles, own)
                 };
                 match hit(&g.world_from_grasp, g.width_m) {
                     None => Some(g),
                     // Pads on its own object: open to what was seen of it, and check again.
-                    Some(Collision::Object(i)) if hand.fit_opening && objects[i].object.id == g.object_id => {
+                    Some(Collision::Object(i)) if hand.fit_opening && Some(i) == own => {
                         let (pose, width) = fit_opening(
                             &g.world_from_grasp,
                             g.width_m,

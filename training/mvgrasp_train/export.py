@@ -87,6 +87,8 @@ def main(argv=None):
     p.add_argument("--data", required=True, help="the dataset it was trained on (contract, held-out views)")
     p.add_argument("--out", required=True)
     p.add_argument("--version", required=True, help="model version written into the metadata")
+    p.add_argument("--data-version", help="data version for the metadata (default: --data's); e.g. "
+                   "sim-3+sim-2 for a model trained on one set and fine-tuned on another")
     p.add_argument("--golden", help="folder for golden input.npy / output.npy")
     p.add_argument("--no-subpixel", action="store_true", help="keep the transposed convolutions as they are")
     args = p.parse_args(argv)
@@ -97,7 +99,7 @@ def main(argv=None):
     model.eval()
     ds = dataset.load(args.data, mmap=True)
     size = ds.contract["input_size_px"]
-    metadata = contract_metadata(ds.contract, args.version, ds.manifest["data_version"])
+    metadata = contract_metadata(ds.contract, args.version, args.data_version or ds.manifest["data_version"])
     ops = export(model, size, args.out, metadata, sub_pixel=not args.no_subpixel)
     _, held = dataset.split_by_instance(ds.meta)
     # Two held-out views that have positives, plus a batch of 16 for the check.

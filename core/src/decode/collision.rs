@@ -1,23 +1,28 @@
 //! Does the hand hit what the camera saw? A check of each grasp, in rank
 //! order, before it is returned.
 //!
-//! The hand is three boxes in the grasp frame (DESIGN.md: +z the approach,
+//! The hand is boxes in the grasp frame (DESIGN.md: +z the approach,
 //! +x the closing direction, origin midway between the fingertips), as the
 //! simulator models the Robotiq 2F-140 (`sim::grasp::GripperModel`):
 //!
 //! - two pads, `pad_thickness_m` thick along x, the gripper's finger width
-//!   along y and its finger depth along z, their inner faces `width / 2`
-//!   from the origin;
+//!   along y and its finger depth along z, their inner faces half the
+//!   opening from the origin; the opening is the grasp's width plus
+//!   `opening_clearance_m`, as the executor opens before closing;
 //! - the palm behind them, `palm_depth_m` along z, `palm_width_m` along y,
-//!   spanning both pads along x.
+//!   spanning both pads along x;
+//! - the gap between the pads, where only the grasp's own object may be.
 //!
 //! The boxes are checked where the hand ends and swept back along the
 //! approach by `approach_m`, pre-shaped `preshape_margin_m` wider (within
 //! the stroke), as a robot arrives. A grasp collides when at least
 //! `min_points` of one detected object's points fall inside (one stray
 //! reading is not an obstacle), or when a box corner reaches under the
-//! table plane. The object's own points count too: pads that land on the
-//! object are a failed grasp as much as pads that land on its neighbour.
+//! table plane. The object's own points count in the pads and the palm:
+//! pads that land on the object are a failed grasp as much as pads that
+//! land on its neighbour. Another object's points count between the pads
+//! too (the hand would close on it, or meet it with the palm on the way
+//! down).
 //!
 //! A grasp refused because the hand would land on its own object (the first
 //! thing [`hand_collision`] finds; not the table, not a neighbour) gets one
@@ -44,6 +49,10 @@ pub struct HandConfig {
     pub enabled: bool,
     /// Pad thickness along the closing direction (m).
     pub pad_thickness_m: f64,
+    /// How much wider than the grasp's width the pads open before closing
+    /// (m, within the stroke): the executor's margin (`sim`'s
+    /// `GripperModel::clearance_m`). The hand is checked at that opening.
+    pub opening_clearance_m: f64,
     /// Gripper body behind the pads: depth along the approach (m).
     pub palm_depth_m: f64,
     /// Gripper body extent across the closing direction (m).
@@ -70,6 +79,7 @@ impl Default for HandConfig {
         Self {
             enabled: true,
             pad_thickness_m: 0.01,
+            opening_clearance_m: 0.02,
             palm_depth_m: 0.05,
             palm_width_m: 0.075,
             approach_m: 0.10,
@@ -151,6 +161,10 @@ pub enum Collision {
 
 /// Whether the hand, closing to `width_m` at `world_from_grasp` after its
 /// approach, would hit the observed points of `obstacles` or the table.
+/// `own` is the grasp's own object among `obstacles`: only its points may
+/// lie between the pads, where the hand ends or on the way in; another
+/// object's points there would be closed on, or met by the palm on the way
+/// down.
 pub fn hand_collides(
     world_from_grasp: &Isometry3<f64>,
     width_m: f64,
@@ -158,8 +172,9 @@ pub fn hand_collides(
     hand: &HandConfig,
     table: &TablePlane,
     obstacles: &[Obstacle<'_>],
+    own: Option<usize>,
 ) -> bool {
-    hand_collision(world_from_grasp, width_m, gripper, hand, table, obstacles).is_some()
+    hand_collision(world_from_grasp, width_m, gripper, hand, table, obstacles, own).is_some()
 }
 
 /// [`hand_collides`], saying what the hand hits first.
@@ -170,15 +185,16 @@ pub fn hand_collision(
     hand: &HandConfig,
     table: &TablePlane,
     obstacles: &[Obstacle<'_>],
+    own: Option<usize>,
 ) -> Option<Collision> {
     if !hand.enabled {
         return None;
     }
-    let preshaped = (width_m + hand.preshape_margin_m)
-        .min(gripper.max_width_m)
-        .max(width_m);
+    let widen = |w: f64, by: f64| (w + by).min(gripper.max_width_m).max(w);
+    let open = widen(width_m, hand.opening_clearance_m);
+    let preshaped = widen(open, hand.preshape_margin_m);
     // Where the hand ends, and the approach behind it (pre-shaped wider).
-    let mut boxes = hand_boxes(width_m, 0.0, 0.0, gripper, hand).to_vec();
+    let mut boxes = hand_boxes(open, 0.0, 0.0, gripper, hand).to_vec();
     boxes.extend(hand_boxes(preshaped, -1e-3, hand.approach_m, gripper, hand));
 
     // Corner heights above the table: the plane's normal in the grasp frame
@@ -192,14 +208,33 @@ pub fn hand_collision(
     {
         return Some(Collision::Table);
     }
+    // Between the pads, where the hand ends and on the way in: only the
+    // grasp's own object may be there.
+    let hand_only = boxes.len();
+    boxes.push(gap_box(open, 0.0, 0.0, gripper));
+    boxes.push(gap_box(preshaped, -1e-3, hand.approach_m, gripper));
     let boxes_f32: Vec<([f32; 3], [f32; 3])> = boxes
         .iter()
         .map(|b| (b.lo.map(|v| v as f32).into(), b.hi.map(|v| v as f32).into()))
         .collect();
     obstacles
         .iter()
-        .position(|o| hits_object(world_from_grasp, &boxes, &boxes_f32, hand.min_points, o))
+        .enumerate()
+        .position(|(i, o)| {
+            let n = if own == Some(i) { hand_only } else { boxes.len() };
+            hits_object(world_from_grasp, &boxes[..n], &boxes_f32[..n], hand.min_points, o)
+        })
         .map(Collision::Object)
+}
+
+/// The space between the pads for an opening `width_m`, the fingertips at
+/// `tip_z` and swept back to `tip_z - sweep` (grasp frame).
+fn gap_box(width_m: f64, tip_z: f64, sweep: f64, gripper: &Gripper) -> GraspBox {
+    let (half_w, half_pad_y) = (width_m / 2.0, gripper.finger_width_m / 2.0);
+    GraspBox {
+        lo: Vector3::new(-half_w, -half_pad_y, tip_z - gripper.finger_depth_m - sweep),
+        hi: Vector3::new(half_w, half_pad_y, tip_z),
+    }
 }
 
 /// The grasp re-fitted to `object`'s points that lie in the pads' paths
@@ -383,7 +418,15 @@ mod tests {
             points,
         };
         let obstacles = if points.is_empty() { vec![] } else { vec![obstacle] };
-        hand_collides(grasp, width, &Gripper::default(), hand, table, &obstacles)
+        hand_collides(
+            grasp,
+            width,
+            &Gripper::default(),
+            hand,
+            table,
+            &obstacles,
+            Some(0),
+        )
     }
 
     /// Points filling a box (world frame) on a 5 mm grid.
@@ -407,20 +450,31 @@ mod tests {
     #[test]
     fn a_free_grasp_around_a_box_passes_and_a_neighbour_under_a_pad_stops_it() {
         let (hand, table) = (HandConfig::default(), table_at(0.0));
-        // A 4 cm wide, 6 cm tall box; grasp 2 cm below its top, opened to 6 cm.
+        // A 4 cm wide, 6 cm tall box; grasp 2 cm below its top, 4 cm wide
+        // (the pads open to 6 cm with the clearance).
         let object = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
         let grasp = top_down(0.0, 0.0, 0.04);
-        assert!(!collides(&grasp, 0.06, &hand, &table, &object));
-        // Opened to 3 cm, the pads land on the box itself.
-        assert!(collides(&grasp, 0.03, &hand, &table, &object));
-        // A neighbour 1 cm beside the right pad's path.
+        assert!(!collides(&grasp, 0.04, &hand, &table, &object));
+        // 1 cm wide (the pads open to 3 cm), the pads land on the box itself.
+        assert!(collides(&grasp, 0.01, &hand, &table, &object));
+        // A neighbour in the right pad's path.
         let mut scene = object.clone();
         scene.extend(block([0.035, -0.02, 0.0], [0.07, 0.02, 0.06]));
-        assert!(collides(&grasp, 0.06, &hand, &table, &scene));
+        assert!(collides(&grasp, 0.04, &hand, &table, &scene));
+        // A neighbour from 5 cm out is hit by a 4.5 cm grasp only because
+        // the pads open 2 cm wider than the grasp (then 2 cm more on the way in).
+        let mut scene = object.clone();
+        scene.extend(block([0.05, -0.02, 0.0], [0.085, 0.02, 0.06]));
+        assert!(collides(&grasp, 0.045, &hand, &table, &scene));
+        let tight = HandConfig {
+            opening_clearance_m: 0.0,
+            ..hand.clone()
+        };
+        assert!(!collides(&grasp, 0.045, &tight, &table, &scene));
         // The same neighbour 10 cm away is no obstacle.
         let mut far = object;
         far.extend(block([0.12, -0.02, 0.0], [0.16, 0.02, 0.06]));
-        assert!(!collides(&grasp, 0.06, &hand, &table, &far));
+        assert!(!collides(&grasp, 0.04, &hand, &table, &far));
     }
 
     #[test]
@@ -436,11 +490,12 @@ mod tests {
             ..hand.clone()
         };
         assert!(!collides(&grasp, 0.06, &short, &table, &shelf));
-        // Two stray readings inside the right pad are below min_points; three are not.
+        // Two stray readings inside the right pad (4 cm wide: the pads open
+        // to 6 cm) are below min_points; three are not.
         let mut stray = vec![[0.035f32, 0.0, 0.05], [0.036, 0.0, 0.06]];
-        assert!(!collides(&grasp, 0.06, &hand, &table, &stray));
+        assert!(!collides(&grasp, 0.04, &hand, &table, &stray));
         stray.push([0.034, 0.005, 0.07]);
-        assert!(collides(&grasp, 0.06, &hand, &table, &stray));
+        assert!(collides(&grasp, 0.04, &hand, &table, &stray));
         let off = HandConfig {
             enabled: false,
             ..hand
@@ -488,30 +543,90 @@ mod tests {
         let framed = as_obstacle(&scene);
         let obstacle = obstacle_of(&world_from_object, &framed);
         let gripper = Gripper::default();
-        for (width, want) in [(0.06, true), (0.03, true)] {
+        for (width, want) in [(0.04, true), (0.01, true)] {
             assert_eq!(
-                hand_collides(&grasp, width, &gripper, &hand, &table, &[obstacle]),
+                hand_collides(&grasp, width, &gripper, &hand, &table, &[obstacle], Some(0)),
                 want
             );
             assert_eq!(collides(&grasp, width, &hand, &table, &scene), want);
         }
-        // Apart, each is its own obstacle: opened to 6 cm the hand hits the
-        // neighbour (the second), closed to 3 cm the box itself (the first).
+        // Apart, each is its own obstacle: 4 cm wide the hand hits the
+        // neighbour (the second), 1 cm wide the box itself (the first).
         let own = as_obstacle(&block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]));
         let neighbour = as_obstacle(&block([0.035, -0.02, 0.0], [0.07, 0.02, 0.06]));
         let both = [
             obstacle_of(&world_from_object, &own),
             obstacle_of(&world_from_object, &neighbour),
         ];
-        let hit = |width: f64| hand_collision(&grasp, width, &gripper, &hand, &table, &both);
-        assert_eq!(hit(0.06), Some(Collision::Object(1)));
-        assert_eq!(hit(0.03), Some(Collision::Object(0)));
-        // The box alone, opened to 6 cm: free in either frame.
+        let hit = |width: f64| hand_collision(&grasp, width, &gripper, &hand, &table, &both, Some(0));
+        assert_eq!(hit(0.04), Some(Collision::Object(1)));
+        assert_eq!(hit(0.01), Some(Collision::Object(0)));
+        // The box alone, 4 cm wide: free in either frame.
         let single = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
         let framed = as_obstacle(&single);
         let alone = obstacle_of(&world_from_object, &framed);
-        assert!(!hand_collides(&grasp, 0.06, &gripper, &hand, &table, &[alone]));
-        assert!(hand_collides(&grasp, 0.03, &gripper, &hand, &table, &[alone]));
+        assert!(!hand_collides(
+            &grasp,
+            0.04,
+            &gripper,
+            &hand,
+            &table,
+            &[alone],
+            Some(0)
+        ));
+        assert!(hand_collides(
+            &grasp,
+            0.01,
+            &gripper,
+            &hand,
+            &table,
+            &[alone],
+            Some(0)
+        ));
+    }
+
+    #[test]
+    fn only_the_grasps_own_object_may_lie_between_the_pads() {
+        let (hand, table, gripper) = (HandConfig::default(), table_at(0.0), Gripper::default());
+        let identity = Isometry3::identity();
+        let framed = |points: &[[f32; 3]]| -> Framed {
+            (points.to_vec(), Vector3::repeat(-1.0), Vector3::repeat(1.0))
+        };
+        // A 4 cm box, grasped 2 cm below its top opened to 6 cm; a flat
+        // object lying across its top: between the pads, clear of the pads
+        // and of the palm.
+        let target = framed(&block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]));
+        let on_top = framed(&block([-0.02, -0.01, 0.065], [0.02, 0.01, 0.075]));
+        let grasp = top_down(0.0, 0.0, 0.04);
+        let objects = [obstacle_of(&identity, &target), obstacle_of(&identity, &on_top)];
+        let hit = |own| hand_collision(&grasp, 0.06, &gripper, &hand, &table, &objects, own);
+        assert_eq!(hit(Some(0)), Some(Collision::Object(1)));
+        // Seen as one object with the box, the hand closes on both: allowed.
+        let merged = framed(&[target.0.clone(), on_top.0.clone()].concat());
+        let one = [obstacle_of(&identity, &merged)];
+        assert!(!hand_collides(
+            &grasp,
+            0.06,
+            &gripper,
+            &hand,
+            &table,
+            &one,
+            Some(0)
+        ));
+        // Without a known own object, every object's points count there.
+        assert!(hand_collides(&grasp, 0.06, &gripper, &hand, &table, &one, None));
+        // The flat object 5 cm aside, clear of the pads' paths: no collision.
+        let aside = framed(&block([-0.02, 0.05, 0.065], [0.02, 0.07, 0.075]));
+        let objects = [obstacle_of(&identity, &target), obstacle_of(&identity, &aside)];
+        assert!(!hand_collides(
+            &grasp,
+            0.06,
+            &gripper,
+            &hand,
+            &table,
+            &objects,
+            Some(0)
+        ));
     }
 
     /// [`fit_opening`] on `points` (world frame) framed by the identity.
@@ -582,7 +697,7 @@ mod tests {
         assert!(collides(&grasp, 0.06, &hand, &table_at(0.0), &[]));
         let gripper = Gripper::default();
         assert_eq!(
-            hand_collision(&grasp, 0.06, &gripper, &hand, &table_at(0.0), &[]),
+            hand_collision(&grasp, 0.06, &gripper, &hand, &table_at(0.0), &[], None),
             Some(Collision::Table)
         );
         assert!(!collides(&grasp, 0.06, &hand, &table_at(-0.05), &[]));
