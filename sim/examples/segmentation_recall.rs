@@ -16,7 +16,6 @@ use mvgrasp_sim::camera::{NoiseModel, render};
 use mvgrasp_sim::eval::episode_scene;
 use mvgrasp_sim::objects::{Catalog, Family};
 use mvgrasp_sim::scene::Scenario;
-use nalgebra::{Point3, Vector3};
 
 fn main() -> anyhow::Result<()> {
     let episodes: u64 = std::env::args()
@@ -48,18 +47,8 @@ fn main() -> anyhow::Result<()> {
             let plan = planner.plan(&input, &PlanOptions::default(), &mut net)?;
             detected += plan.objects.len();
             let mut held = vec![0usize; plan.objects.len()];
-            for label in 2..2 + scene.objects.len() as u16 {
-                let points: Vec<_> = frame
-                    .labelled_points(label)
-                    .into_iter()
-                    .filter(|p| p.z > z + 0.01)
-                    .collect();
-                if points.len() < 200 {
-                    continue;
-                }
+            for (_, centroid) in frame.visible_centroids(scene.objects.len(), z, 0.01, 200) {
                 visible += 1;
-                let centroid =
-                    Point3::from(points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64);
                 let frames = plan.objects.iter().map(|o| &o.frame);
                 if frames
                     .clone()

@@ -267,4 +267,29 @@ impl Frame {
             })
             .collect()
     }
+
+    /// The centroid of each of the scene's first `objects` objects (labels
+    /// 2, 3, ...) seen with at least `min_points` pixels more than `above_m`
+    /// over the table top at `table_z`, with the object's index.
+    pub fn visible_centroids(
+        &self,
+        objects: usize,
+        table_z: f64,
+        above_m: f64,
+        min_points: usize,
+    ) -> Vec<(usize, Point3<f64>)> {
+        (0..objects)
+            .filter_map(|i| {
+                let points: Vec<_> = self
+                    .labelled_points(2 + i as u16)
+                    .into_iter()
+                    .filter(|p| p.z > table_z + above_m)
+                    .collect();
+                (points.len() >= min_points).then(|| {
+                    let sum = points.iter().map(|p| p.coords).sum::<Vector3<f64>>();
+                    (i, Point3::from(sum / points.len() as f64))
+                })
+            })
+            .collect()
+    }
 }

@@ -603,28 +603,17 @@ mod tests {
         assert_eq!(hit(Some(0)), Some(Collision::Object(1)));
         // Seen as one object with the box, the hand closes on both: allowed.
         let merged = framed(&[target.0.clone(), on_top.0.clone()].concat());
+        let collides = |objects: &[Obstacle<'_>], own| {
+            hand_collides(&grasp, 0.06, &gripper, &hand, &table, objects, own)
+        };
         let one = [obstacle_of(&identity, &merged)];
-        assert!(!hand_collides(
-            &grasp,
-            0.06,
-            &gripper,
-            &hand,
-            &table,
-            &one,
-            Some(0)
-        ));
+        assert!(!collides(&one, Some(0)));
         // Without a known own object, every object's points count there.
-        assert!(hand_collides(&grasp, 0.06, &gripper, &hand, &table, &one, None));
+        assert!(collides(&one, None));
         // The flat object 5 cm aside, clear of the pads' paths: no collision.
         let aside = framed(&block([-0.02, 0.05, 0.065], [0.02, 0.07, 0.075]));
-        let objects = [obstacle_of(&identity, &target), obstacle_of(&identity, &aside)];
-        assert!(!hand_collides(
-            &grasp,
-            0.06,
-            &gripper,
-            &hand,
-            &table,
-            &objects,
+        assert!(!collides(
+            &[obstacle_of(&identity, &target), obstacle_of(&identity, &aside)],
             Some(0)
         ));
     }

@@ -166,21 +166,12 @@ fn the_pipeline_finds_simulated_objects() {
             let input = frame.scene_input(&bytes, scene.workspace());
             let plan = planner.plan(&input, &PlanOptions::default(), &mut net).unwrap();
             // Objects with at least 200 pixels in view, more than 1 cm above the table.
-            for label in 2..2 + scene.objects.len() as u16 {
-                let points: Vec<_> = frame
-                    .labelled_points(label)
-                    .into_iter()
-                    .filter(|p| p.z > z + 0.01)
-                    .collect();
-                if points.len() < 200 {
-                    continue;
-                }
+            for (_, centroid) in frame.visible_centroids(scene.objects.len(), z, 0.01, 200) {
                 visible += 1;
-                let centroid = points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64;
                 let near = plan
                     .objects
                     .iter()
-                    .any(|o| (o.frame.world_from_object.translation.vector - centroid).norm() < 0.02);
+                    .any(|o| (o.frame.world_from_object.translation.vector - centroid.coords).norm() < 0.02);
                 found += usize::from(near);
                 if scenario == Scenario::Isolated {
                     assert!(near, "isolated seed {seed}: the object was not found");
