@@ -592,9 +592,9 @@ mod tests {
         let framed = |points: &[[f32; 3]]| -> Framed {
             (points.to_vec(), Vector3::repeat(-1.0), Vector3::repeat(1.0))
         };
-        // A 4 cm box, grasped 2 cm below its top opened to 6 cm; a flat
-        // object lying across its top: between the pads, clear of the pads
-        // and of the palm.
+        // A 4 cm box, grasped 2 cm below its top, 6 cm wide (the pads open
+        // to 8 cm); a flat object lying across its top: between the pads,
+        // clear of the pads and of the palm.
         let target = framed(&block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]));
         let on_top = framed(&block([-0.02, -0.01, 0.065], [0.02, 0.01, 0.075]));
         let grasp = top_down(0.0, 0.0, 0.04);
