@@ -142,16 +142,6 @@ impl HandPart {
     }
 }
 
-impl std::fmt::Display for Obstacle {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Table => write!(f, "table"),
-            Self::Target => write!(f, "the object"),
-            Self::Neighbour(i) => write!(f, "neighbour {i}"),
-        }
-    }
-}
-
 impl GraspLabel {
     /// True for [`GraspLabel::Positive`].
     pub fn is_positive(&self) -> bool {
