@@ -12,7 +12,7 @@ use std::hint::black_box;
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use mvgrasp_core::object::object_frame;
-use mvgrasp_core::segment::{euclidean_clusters, fit_table};
+use mvgrasp_core::segment::{ImagePoints, euclidean_clusters, fit_table, split_at_creases};
 use mvgrasp_core::select::view_entropy;
 use mvgrasp_core::sensor::{BlockMask, random_world_points, world_points_above};
 use mvgrasp_core::{
@@ -57,11 +57,12 @@ fn stages(c: &mut Criterion) {
     };
     let stride = config.table.mask_stride;
     let near = BlockMask::from_frame(frame, pose, workspace, &half_space, stride).expect("mask");
-    let above = world_points_above(sensor, pose, workspace, &half_space, Some(&near)).expect("objects");
+    let above_cloud = world_points_above(sensor, pose, workspace, &half_space, Some(&near)).expect("objects");
     let full = world_points_above(sensor, pose, workspace, &half_space, None).expect("objects");
+    let above = above_cloud.points.clone();
     assert_eq!(
         above.len(),
-        full.len(),
+        full.points.len(),
         "the block mask must not lose object points here"
     );
     eprintln!("block mask keeps {:.1}% of the frame", 100.0 * near.coverage());
@@ -105,6 +106,28 @@ fn stages(c: &mut Criterion) {
     });
     group.bench_function("4_cluster", |b| {
         b.iter(|| euclidean_clusters(black_box(&above), &config.cluster))
+    });
+    let crease = config
+        .cluster
+        .crease
+        .clone()
+        .expect("the crease split is on by default");
+    let axis = pose.rotation * Vector3::z();
+    let origin = pose.translation.vector;
+    let image = ImagePoints {
+        points: &above,
+        pixels: &above_cloud.pixels,
+        width: frame.width as usize,
+        origin: [origin.x as f32, origin.y as f32, origin.z as f32],
+        axis: [axis.x as f32, axis.y as f32, axis.z as f32],
+        focal_px: frame.intrinsics.fx as f32,
+    };
+    group.bench_function("4b_crease_split", |b| {
+        b.iter_batched(
+            || clusters.clone(),
+            |clusters| split_at_creases(black_box(&image), clusters, config.cluster.tolerance_m, &crease),
+            BatchSize::SmallInput,
+        )
     });
     group.bench_function("4_cluster_reference_kiddo_kd_tree_flood_fill", |b| {
         b.iter(|| kd_tree_flood_fill(black_box(&above), config.cluster.tolerance_m))

@@ -15,7 +15,10 @@ use crate::geometry::Workspace;
 use crate::gripper::Gripper;
 use crate::infer::{GraspMaps, GraspNet, ModelContract, NORMALISATION_CUBE_V1, ViewBatch};
 use crate::object::{ObjectFrame, object_frame};
-use crate::segment::{ClusterConfig, TableConfig, TablePlane, euclidean_clusters, fit_table};
+use crate::segment::{
+    ClusterConfig, ImagePoints, TableConfig, TablePlane, euclidean_clusters, fit_table, fixed_order,
+    split_at_creases,
+};
 use crate::select::{ViewPolicy, select_views};
 use crate::sensor::{BlockMask, SensorInput, random_world_points, world_points, world_points_above};
 use crate::view::{OrthoView, ViewAxis};
@@ -117,7 +120,7 @@ pub struct StageTimings {
     pub table: Duration,
     /// Block mask, then world points above the table at full resolution.
     pub sensor_objects: Duration,
-    /// Euclidean clustering.
+    /// Euclidean clustering, then the crease split.
     pub cluster: Duration,
     /// Object frames.
     pub frames: Duration,
@@ -196,6 +199,19 @@ pub struct Plan {
     pub debug_views: Vec<DebugView>,
 }
 
+/// What stands on the table: [`Planner::segment`]'s answer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Segmentation {
+    /// The table.
+    pub table: TablePlane,
+    /// The points above the table (world).
+    pub points: Vec<[f32; 3]>,
+    /// Each point's pixel (`v * width + u`) for a depth image; empty for a cloud.
+    pub pixels: Vec<u32>,
+    /// The objects, as indices into `points`, in the fixed order (object ids).
+    pub clusters: Vec<Vec<u32>>,
+}
+
 struct PreparedObject {
     object: DetectedObject,
     views: Vec<OrthoView>,
@@ -263,10 +279,13 @@ impl Planner {
         &self.config
     }
 
-    /// Frame -> objects -> frames -> views -> entropy -> the batch to infer.
-    pub fn prepare(&self, scene: &SceneInput<'_>, options: &PlanOptions) -> Result<Prepared> {
-        options.validate()?;
-        let mut timings = StageTimings::default();
+    /// Frame -> table -> the object points -> clusters (split at creases
+    /// for a depth image): the stages before the object frames.
+    pub fn segment(&self, scene: &SceneInput<'_>) -> Result<Segmentation> {
+        self.segment_timed(scene, &mut StageTimings::default())
+    }
+
+    fn segment_timed(&self, scene: &SceneInput<'_>, timings: &mut StageTimings) -> Result<Segmentation> {
         let mut clock = Instant::now();
         let mut lap = |slot: &mut Duration| {
             let now = Instant::now();
@@ -308,8 +327,51 @@ impl Planner {
         let above = world_points_above(sensor, pose, workspace, &half_space, near.as_ref())?;
         lap(&mut timings.sensor_objects);
 
-        let clusters = euclidean_clusters(&above, &self.config.cluster);
+        let cluster_config = &self.config.cluster;
+        let mut clusters = euclidean_clusters(&above.points, cluster_config);
+        if let (Some(crease), SensorInput::Depth(frame)) = (&cluster_config.crease, sensor) {
+            let rotation = pose.rotation;
+            let axis = rotation * Vector3::z();
+            let t = pose.translation.vector;
+            let image = ImagePoints {
+                points: &above.points,
+                pixels: &above.pixels,
+                width: frame.width as usize,
+                origin: [t.x as f32, t.y as f32, t.z as f32],
+                axis: [axis.x as f32, axis.y as f32, axis.z as f32],
+                focal_px: frame.intrinsics.fx as f32,
+            };
+            let split;
+            (clusters, split) = split_at_creases(&image, clusters, cluster_config.tolerance_m, crease);
+            if split {
+                clusters = fixed_order(&above.points, clusters, cluster_config.max_objects);
+            }
+        }
         lap(&mut timings.cluster);
+        Ok(Segmentation {
+            table,
+            points: above.points,
+            pixels: above.pixels,
+            clusters,
+        })
+    }
+
+    /// Frame -> objects -> frames -> views -> entropy -> the batch to infer.
+    pub fn prepare(&self, scene: &SceneInput<'_>, options: &PlanOptions) -> Result<Prepared> {
+        options.validate()?;
+        let mut timings = StageTimings::default();
+        let Segmentation {
+            table,
+            points: above,
+            clusters,
+            ..
+        } = self.segment_timed(scene, &mut timings)?;
+        let mut clock = Instant::now();
+        let mut lap = |slot: &mut Duration| {
+            let now = Instant::now();
+            *slot = now - clock;
+            clock = now;
+        };
 
         let camera = Point3::from(scene.world_from_camera.translation.vector);
         let framed: Vec<(ObjectFrame, Vec<[f32; 3]>)> = clusters

@@ -1,73 +1,202 @@
-//! How many of a scene's objects the planner's segmentation finds, per
-//! scenario, on the scenes and cameras of `sim eval --seed 800000` (the
-//! tuning seeds), with the analytic baseline network (segmentation does not
-//! depend on the network).
+//! How well the planner's segmentation separates a scene's objects, per
+//! scenario, with the crease split off and on, on the scenes and cameras of
+//! `sim eval --seed 800000` (the tuning seeds; first frame of each episode).
 //!
-//!     cargo run --release -p mvgrasp-sim --example segmentation_recall [EPISODES]
+//!     cargo run --release -p mvgrasp-sim --example segmentation_recall [EPISODES] [PNG_DIR|-] [CREASE]
 //!
-//! An object counts as visible with at least 200 pixels more than 1 cm above
-//! the table, and as found when a detected object's centroid lies within
-//! 2 cm of its visible points' centroid. A detection is "merged" when the
-//! centroids of two or more visible objects lie in its box.
+//! `CREASE` is the split compared with none, in `sim eval --crease-split`'s
+//! form (default `on`).
+//!
+//! Scored on pixels, against the renderer's labels, over the pixels the
+//! planner kept as object points:
+//! - an object is *visible* with at least 200 such pixels;
+//! - *found*: one detection covers it with IoU >= 0.5;
+//! - a detection is *merged* when two or more objects each hold at least 20%
+//!   of its pixels;
+//! - an object is *split* when two or more detections each hold at least 20%
+//!   of its pixels;
+//! - a detection *matches none* when it is no object's IoU >= 0.5 match (a
+//!   fragment, a merge, or something that is not an object).
+//!
+//! With `PNG_DIR`, each scene is drawn as labels | split off | split on.
+
+use std::path::{Path, PathBuf};
 
 use mvgrasp_core::rng::SplitMix64;
-use mvgrasp_core::{GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig};
-use mvgrasp_sim::camera::{NoiseModel, render};
-use mvgrasp_sim::eval::episode_scene;
+use mvgrasp_core::{ClusterConfig, GraspNet, MomentsNet, Planner, PlannerConfig, Segmentation};
+use mvgrasp_sim::camera::{Frame, NoiseModel, render};
+use mvgrasp_sim::eval::{crease_setting, episode_scene};
 use mvgrasp_sim::objects::{Catalog, Family};
 use mvgrasp_sim::scene::Scenario;
+use std::collections::HashMap;
+
+/// Counts over a set of frames.
+#[derive(Default)]
+struct Score {
+    visible: usize,
+    detections: usize,
+    found: usize,
+    merged: usize,
+    split: usize,
+    unmatched: usize,
+}
+
+fn score(frame: &Frame, seg: &Segmentation, score: &mut Score) {
+    // overlap[(detection, label)] = pixels; per-label and per-detection totals.
+    let mut overlap: HashMap<(usize, u16), usize> = HashMap::new();
+    let mut of_label: HashMap<u16, usize> = HashMap::new();
+    let mut of_detection = vec![0usize; seg.clusters.len()];
+    let mut detection_of_point = vec![usize::MAX; seg.points.len()];
+    for (d, c) in seg.clusters.iter().enumerate() {
+        for &i in c {
+            detection_of_point[i as usize] = d;
+        }
+    }
+    for (i, &pixel) in seg.pixels.iter().enumerate() {
+        let label = frame.labels[pixel as usize];
+        if label < 2 {
+            continue;
+        }
+        *of_label.entry(label).or_default() += 1;
+        let d = detection_of_point[i];
+        if d != usize::MAX {
+            of_detection[d] += 1;
+            *overlap.entry((d, label)).or_default() += 1;
+        }
+    }
+    score.detections += seg.clusters.len();
+    let mut matched = vec![false; seg.clusters.len()];
+    for (&label, &n) in &of_label {
+        if n < 200 {
+            continue;
+        }
+        score.visible += 1;
+        let shares: Vec<(usize, usize)> = overlap
+            .iter()
+            .filter(|((_, l), _)| *l == label)
+            .map(|(&(d, _), &k)| (d, k))
+            .collect();
+        if let Some(&(d, _)) = shares
+            .iter()
+            .find(|&&(d, k)| k as f64 / (n + of_detection[d] - k) as f64 >= 0.5)
+        {
+            score.found += 1;
+            matched[d] = true;
+        }
+        if shares.iter().filter(|&&(_, k)| k * 5 >= n).count() >= 2 {
+            score.split += 1;
+        }
+    }
+    score.unmatched += matched.iter().filter(|&&m| !m).count();
+    for (d, &total) in of_detection.iter().enumerate() {
+        let big = overlap
+            .iter()
+            .filter(|((e, _), k)| *e == d && **k * 5 >= total)
+            .count();
+        if big >= 2 {
+            score.merged += 1;
+        }
+    }
+}
+
+fn colour(i: usize) -> [u8; 3] {
+    let h = (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    [
+        (h >> 56) as u8 | 0x50,
+        (h >> 48) as u8 | 0x50,
+        (h >> 40) as u8 | 0x50,
+    ]
+}
+
+/// Labels | segmentation without the split | with it, side by side.
+fn draw(path: &Path, frame: &Frame, segs: [&Segmentation; 2]) -> anyhow::Result<()> {
+    let (w, h) = (frame.camera.width as usize, frame.camera.height as usize);
+    let mut image = vec![0u8; 3 * w * h * 3];
+    for (i, (&d, &label)) in frame.depth_mm.iter().zip(&frame.labels).enumerate() {
+        let grey = (255.0 * (1.4 - f64::from(d) / 1000.0).clamp(0.0, 1.0)) as u8 * u8::from(d > 0);
+        let row = (i / w) * 3 * w + i % w;
+        for panel in 0..3 {
+            let c = if panel == 0 && label >= 2 {
+                colour(usize::from(label))
+            } else {
+                [grey; 3]
+            };
+            image[3 * (row + panel * w)..][..3].copy_from_slice(&c);
+        }
+    }
+    for (panel, seg) in segs.iter().enumerate() {
+        for (d, c) in seg.clusters.iter().enumerate() {
+            for &p in c {
+                let i = seg.pixels[p as usize] as usize;
+                let row = (i / w) * 3 * w + i % w;
+                image[3 * (row + (panel + 1) * w)..][..3].copy_from_slice(&colour(100 + d));
+            }
+        }
+    }
+    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let mut encoder = png::Encoder::new(file, 3 * w as u32, h as u32);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.write_header()?.write_image_data(&image)?;
+    Ok(())
+}
 
 fn main() -> anyhow::Result<()> {
-    let episodes: u64 = std::env::args()
-        .nth(1)
-        .map(|a| a.parse())
-        .transpose()?
-        .unwrap_or(16);
-    let mut net = MomentsNet::default();
-    let planner = Planner::new(PlannerConfig::default(), net.contract().clone())?;
+    let mut args = std::env::args().skip(1);
+    let episodes: u64 = args.next().map(|a| a.parse()).transpose()?.unwrap_or(16);
+    let png_dir = args.next().filter(|a| a != "-").map(PathBuf::from);
+    if let Some(dir) = &png_dir {
+        std::fs::create_dir_all(dir)?;
+    }
+    let contract = MomentsNet::default().contract().clone();
+    let planner = |crease| {
+        let config = PlannerConfig {
+            cluster: ClusterConfig {
+                crease,
+                ..ClusterConfig::default()
+            },
+            ..PlannerConfig::default()
+        };
+        Planner::new(config, contract.clone())
+    };
+    let crease = crease_setting(&args.next().unwrap_or_else(|| "on".into()))?;
+    let planners = [planner(None)?, planner(crease)?];
     // The seen families of results/seen-families (every family but the bowl).
     let families: Vec<Family> = Family::ALL.into_iter().filter(|f| *f != Family::Bowl).collect();
     let catalog = Catalog::of(&families);
-    println!("scenario | visible | detected | found | merged detections");
+    println!(
+        "scenario | crease split | visible | detections | found (IoU >= 0.5) | merged detections | split objects | detections matching none"
+    );
+    println!("---|---|---|---|---|---|---|---");
     for scenario in [
         Scenario::Isolated,
         Scenario::Packed,
         Scenario::Pile,
         Scenario::Clutter,
     ] {
-        let (mut visible, mut found, mut detected, mut merged) = (0, 0, 0, 0);
+        let mut scores = [Score::default(), Score::default()];
         for seed in 800_000..800_000 + episodes {
             let (scene, camera) = episode_scene(scenario, seed, &catalog)?;
-            let z = f64::from(scene.table_z);
             // The first frame of the episode, with `sim eval`'s noise draw.
             let mut rng = SplitMix64::new(seed ^ 0x0153_EAB0);
             let frame = render(&scene, &camera, Some((&NoiseModel::default(), &mut rng)));
             let bytes = frame.depth_le_bytes();
             let input = frame.scene_input(&bytes, scene.workspace());
-            let plan = planner.plan(&input, &PlanOptions::default(), &mut net)?;
-            detected += plan.objects.len();
-            let mut held = vec![0usize; plan.objects.len()];
-            for (_, centroid) in frame.visible_centroids(scene.objects.len(), z, 0.01, 200) {
-                visible += 1;
-                let frames = plan.objects.iter().map(|o| &o.frame);
-                if frames
-                    .clone()
-                    .any(|f| (f.world_from_object.translation.vector - centroid.coords).norm() < 0.02)
-                {
-                    found += 1;
-                }
-                for (n, f) in held.iter_mut().zip(frames) {
-                    let local = f.world_from_object.inverse_transform_point(&centroid).coords;
-                    if (0..3).all(|i| {
-                        local[i] >= f.extent_min_m[i] - 0.005 && local[i] <= f.extent_max_m[i] + 0.005
-                    }) {
-                        *n += 1;
-                    }
-                }
+            let segs = [planners[0].segment(&input)?, planners[1].segment(&input)?];
+            for (seg, s) in segs.iter().zip(&mut scores) {
+                score(&frame, seg, s);
             }
-            merged += held.iter().filter(|&&n| n > 1).count();
+            if let Some(dir) = &png_dir {
+                let name = format!("{scenario:?}-{seed}.png").to_lowercase();
+                draw(&dir.join(name), &frame, [&segs[0], &segs[1]])?;
+            }
         }
-        println!("{scenario:?} | {visible} | {detected} | {found} | {merged}");
+        for (s, on) in scores.iter().zip(["off", "on"]) {
+            println!(
+                "{scenario:?} | {on} | {} | {} | {} | {} | {} | {}",
+                s.visible, s.detections, s.found, s.merged, s.split, s.unmatched
+            );
+        }
     }
     Ok(())
 }

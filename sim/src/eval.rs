@@ -33,7 +33,7 @@ use std::time::Instant;
 use mvgrasp_client::request::{depth_request, pose_from_message};
 use mvgrasp_client::{PlannerClient, pb};
 use mvgrasp_core::rng::SplitMix64;
-use mvgrasp_core::{GraspNet, PlanOptions, Planner, ViewPolicy, Workspace};
+use mvgrasp_core::{CreaseConfig, GraspNet, PlanOptions, Planner, ViewPolicy, Workspace};
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use parry3d::math::Pose;
 
@@ -103,6 +103,48 @@ impl Setting {
         };
         format!("{policy}:{}", self.tau)
     }
+}
+
+/// The crease split from its text form (`sim eval --crease-split`): `on`
+/// (the defaults), `off`, or `SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART`
+/// (the fields of [`CreaseConfig`], the valley in millimetres).
+pub fn crease_setting(text: &str) -> Result<Option<CreaseConfig>> {
+    let bad = |reason: String| Error::Invalid {
+        field: "crease-split",
+        reason,
+    };
+    match text {
+        "on" => return Ok(Some(CreaseConfig::default())),
+        "off" => return Ok(None),
+        _ => {}
+    }
+    let fields: Vec<&str> = text.split(':').collect();
+    let [smooth, baseline, valley_mm, ratio, min_part] = fields[..] else {
+        return Err(bad(format!(
+            "{text:?} is not on, off or SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART"
+        )));
+    };
+    let number = |name: &str, v: &str| -> Result<f64> {
+        v.parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite() && *x >= 0.0)
+            .ok_or_else(|| bad(format!("{text:?}: {name} {v:?} is not a number >= 0")))
+    };
+    let whole = |name: &str, v: &str| -> Result<usize> {
+        v.parse::<usize>()
+            .map_err(|e| bad(format!("{text:?}: {name} {v:?}: {e}")))
+    };
+    let config = CreaseConfig {
+        smooth_radius_px: whole("smoothing radius", smooth)?,
+        baseline_px: whole("baseline", baseline)?,
+        min_valley_m: (number("valley depth", valley_mm)? / 1000.0) as f32,
+        min_valley_ratio: number("ratio", ratio)? as f32,
+        min_part_points: whole("smallest part", min_part)?,
+    };
+    if config.baseline_px == 0 {
+        return Err(bad(format!("{text:?}: the baseline must be at least 1 px")));
+    }
+    Ok(Some(config))
 }
 
 /// Why an attempt failed.

@@ -7,7 +7,7 @@ use clap::{Parser, Subcommand};
 use mvgrasp_core::rng::SplitMix64;
 use mvgrasp_core::{ModelContract, PlannerConfig};
 use mvgrasp_server::{BackendKind, settings::ModelSettings};
-use mvgrasp_sim::eval::{EpisodeConfig, Setting};
+use mvgrasp_sim::eval::{EpisodeConfig, Setting, crease_setting};
 use mvgrasp_sim::{
     camera::{Camera, NoiseModel, render},
     dataset::{DatagenConfig, generate},
@@ -134,6 +134,11 @@ enum Command {
         /// Episodes per scenario drawn into OUT/snapshots (first setting).
         #[arg(long, default_value_t = 2)]
         snapshots: usize,
+        /// The in-process planner's crease split: `on` (the defaults), `off`,
+        /// or `SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART` to try others
+        /// (`CreaseConfig`).
+        #[arg(long, default_value = "on")]
+        crease_split: String,
     },
     /// Render one scene: depth.png + camera.json (what `mvgrasp plan` reads),
     /// labels.png and preview.png.
@@ -228,6 +233,7 @@ fn main() -> anyhow::Result<()> {
             snapshots,
             server,
             opening_margin_mm,
+            crease_split,
         } => {
             use_threads(threads)?;
             let scenarios = scenarios_of(&scenarios)?;
@@ -253,6 +259,7 @@ fn main() -> anyhow::Result<()> {
             if let Some(mm) = opening_margin_mm {
                 planner.decode.opening_margin_m = mm / 1000.0;
             }
+            planner.cluster.crease = crease_setting(&crease_split)?;
             eval_command(&EvalRun {
                 planning,
                 planner,

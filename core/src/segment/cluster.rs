@@ -24,6 +24,8 @@
 
 use rustc_hash::FxHashMap;
 
+use super::CreaseConfig;
+
 /// Settings of the clustering stage.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ClusterConfig {
@@ -35,6 +37,9 @@ pub struct ClusterConfig {
     pub max_points: usize,
     /// At most this many objects are kept (the largest ones).
     pub max_objects: usize,
+    /// Split clusters at creases and steps of the depth image (`None`: off;
+    /// a point cloud input is never split).
+    pub crease: Option<CreaseConfig>,
 }
 
 impl Default for ClusterConfig {
@@ -44,6 +49,7 @@ impl Default for ClusterConfig {
             min_points: 60,
             max_points: 400_000,
             max_objects: 64,
+            crease: Some(CreaseConfig::default()),
         }
     }
 }
@@ -91,6 +97,29 @@ pub fn euclidean_clusters(points: &[[f32; 3]], config: &ClusterConfig) -> Vec<Ve
             cluster.extend_from_slice(cells.members_of(c));
         }
     }
+    clusters
+}
+
+/// `clusters` in the fixed order of [`euclidean_clusters`] (by centroid at
+/// 0.1 mm, then size), at most `max_objects` of them (the largest): for
+/// clusters changed after clustering.
+pub fn fixed_order(points: &[[f32; 3]], mut clusters: Vec<Vec<u32>>, max_objects: usize) -> Vec<Vec<u32>> {
+    // The same integer centroid as the cells' sums give.
+    let key = |c: &[u32]| {
+        let mut sum = [0i64; 3];
+        for &i in c {
+            for (s, v) in sum.iter_mut().zip(points[i as usize]) {
+                *s += i64::from((v * 1e5) as i32);
+            }
+        }
+        let n = c.len().max(1) as i64;
+        sum.map(|s| (s / n).div_euclid(10))
+    };
+    if clusters.len() > max_objects {
+        clusters.sort_by_cached_key(|c| (std::cmp::Reverse(c.len()), key(c)));
+        clusters.truncate(max_objects);
+    }
+    clusters.sort_by_cached_key(|c| (key(c), c.len()));
     clusters
 }
 

@@ -1,7 +1,10 @@
-//! Segmentation: table plane removal, then Euclidean clustering into objects.
+//! Segmentation: table plane removal, Euclidean clustering into objects, and
+//! a split of clusters at concave creases and depth steps of the image.
 
 mod cluster;
+mod crease;
 mod table;
 
-pub use cluster::{ClusterConfig, MAX_DENSE_CELLS, euclidean_clusters};
+pub use cluster::{ClusterConfig, MAX_DENSE_CELLS, euclidean_clusters, fixed_order};
+pub use crease::{CreaseConfig, ImagePoints, split_at_creases};
 pub use table::{TableConfig, TablePlane, fit_table};

@@ -195,24 +195,26 @@ pub fn random_world_points(
 }
 
 /// Every point inside `workspace` and `above` at full resolution: the object
-/// points, without ever storing the table. With `near`, only the pixels of
-/// the blocks it marks are converted (a depth image; a cloud ignores it).
+/// points, without ever storing the table, with each point's pixel for a
+/// depth image (the crease split needs the image's neighbourhoods). With
+/// `near`, only the pixels of the blocks it marks are converted (a depth
+/// image; a cloud ignores it).
 pub fn world_points_above(
     input: &SensorInput<'_>,
     world_from_camera: &Isometry3<f64>,
     workspace: &Workspace,
     above: &Above,
     near: Option<&BlockMask>,
-) -> Result<Vec<[f32; 3]>> {
+) -> Result<WorldCloud> {
     let keep = Keep::new(workspace, Some(above));
     let sampling = match near {
         Some(mask) => Sampling::Blocks(mask),
         None => Sampling::Grid {
             stride: 1,
-            pixels: false,
+            pixels: true,
         },
     };
-    Ok(convert(input, world_from_camera, &keep, sampling)?.points)
+    convert(input, world_from_camera, &keep, sampling)
 }
 
 /// Blocks of `stride x stride` pixels of a depth image that are worth a
@@ -289,7 +291,8 @@ enum Sampling<'a> {
         /// Record `WorldCloud::pixels`.
         pixels: bool,
     },
-    /// Every pixel of the marked blocks (every point of a cloud).
+    /// Every pixel of the marked blocks, with its pixel recorded (every
+    /// point of a cloud).
     Blocks(&'a BlockMask),
 }
 
@@ -400,6 +403,7 @@ fn depth_to_world(
             let s = mask.stride;
             let marked = mask.marked.iter().filter(|&&m| m).count();
             out.points.reserve(marked * s * s);
+            out.pixels.reserve(marked * s * s);
             let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
             for (block_row, blocks) in mask.marked.chunks_exact(mask.blocks_wide).enumerate() {
                 // Runs of marked blocks -> column ranges, shared by the
@@ -419,7 +423,7 @@ fn depth_to_world(
                 }
                 for v in block_row * s..((block_row + 1) * s).min(h) {
                     for columns in &runs {
-                        rays.row(frame, keep, v, columns.clone(), false, &mut out);
+                        rays.row(frame, keep, v, columns.clone(), true, &mut out);
                     }
                 }
             }

@@ -236,7 +236,14 @@ fn block_mask_loses_no_object_point() {
         .expect("near");
         let full =
             world_points_above(&sensor, &camera.world_from_camera, &workspace, &above, None).expect("full");
-        assert_eq!(near.len(), full.len());
+        assert_eq!(near.points.len(), full.points.len());
+        // The same pixels, each with its point.
+        let mut a: Vec<_> = near.pixels.iter().zip(&near.points).collect();
+        let mut b: Vec<_> = full.pixels.iter().zip(&full.points).collect();
+        a.sort_by_key(|(p, _)| **p);
+        b.sort_by_key(|(p, _)| **p);
+        assert_eq!(a, b);
+        assert_eq!(near.pixels.len(), near.points.len());
         assert!(mask.coverage() < 0.3, "the mask should skip most of the frame");
     }
 }

@@ -19,11 +19,21 @@ pub fn table_workspace(scene: &Scene) -> Workspace {
 
 /// Renders `scene` and plans on it with the analytic baseline network.
 pub fn plan_rendered(scene: &Scene, camera: &Camera, options: &PlanOptions) -> (Plan, Rendered) {
+    plan_rendered_with(PlannerConfig::default(), scene, camera, options)
+}
+
+/// [`plan_rendered`] with a planner configured by `config`.
+pub fn plan_rendered_with(
+    config: PlannerConfig,
+    scene: &Scene,
+    camera: &Camera,
+    options: &PlanOptions,
+) -> (Plan, Rendered) {
     let rendered = scene::render(scene, camera);
     let bytes = rendered.depth_bytes();
     let input = camera.scene_input(&bytes, table_workspace(scene));
     let mut net = MomentsNet::default();
-    let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).expect("planner");
+    let planner = Planner::new(config, net.contract().clone()).expect("planner");
     let plan = planner.plan(&input, options, &mut net).expect("plan");
     (plan, rendered)
 }

@@ -2,11 +2,13 @@
 //! objects, and on touching (packed) objects.
 
 use mvgrasp_core::decode::HandConfig;
-use mvgrasp_core::{GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig, ViewPolicy, approach_of};
+use mvgrasp_core::{
+    ClusterConfig, GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig, ViewPolicy, approach_of,
+};
 use nalgebra::{Point3, Vector3};
 
 use crate::scene::{self, Camera, Scene, Shape, grid_scene, labelled_points};
-use crate::{plan_rendered, table_workspace};
+use crate::{plan_rendered, plan_rendered_with, table_workspace};
 
 /// Centroid of what the camera saw of each shape above the table's
 /// "object" threshold (8 mm): what segmentation should recover.
@@ -82,15 +84,15 @@ fn fifteen_objects() {
     );
 }
 
-/// Touching objects merge when their visible surfaces meet. Here a
-/// cylinder stands against the camera-facing side of a tall box: one object.
-/// A shorter box touches the tall box's far side; the camera sees only its
-/// top, 2 cm below the tall box's top, and the face that joins them is
-/// hidden, so it stays a separate object. A lone box stays apart. Three
-/// objects from four shapes (nothing in depth alone separates touching
-/// objects; see `segment::cluster`).
+/// Touching objects: a cylinder stands against the camera-facing side of a
+/// tall box; a shorter box touches the tall box's far side, its top 2 cm
+/// below the tall box's (the face that joins them is hidden); a lone box
+/// stands apart. Euclidean clustering alone (crease split off) joins the
+/// cylinder to the tall box, their visible surfaces meet: three objects. The
+/// crease split cuts them apart where they meet, a concave crease in the
+/// depth image: four.
 #[test]
-fn touching_objects_merge_where_their_visible_surfaces_meet() {
+fn touching_objects_split_at_the_crease_where_they_meet() {
     let z = 0.0;
     let scene = Scene {
         table_z: z,
@@ -103,24 +105,41 @@ fn touching_objects_merge_where_their_visible_surfaces_meet() {
         ],
     };
     let camera = Camera::orbit(Vector3::zeros(), 0.8, 55.0, -60.0);
-    let (plan, rendered) = plan_rendered(&scene, &camera, &PlanOptions::default());
-    assert_eq!(plan.objects.len(), 3);
-    let seen = |labels: &[u16]| {
-        let points: Vec<Vector3<f64>> = labels
-            .iter()
-            .flat_map(|&l| labelled_points(&rendered, &camera, l))
-            .filter(|p| p.z > z + 0.008)
-            .map(|p| p.coords)
-            .collect();
-        points.iter().sum::<Vector3<f64>>() / points.len() as f64
+    let without_split = PlannerConfig {
+        cluster: ClusterConfig {
+            crease: None,
+            ..ClusterConfig::default()
+        },
+        ..PlannerConfig::default()
     };
-    for expected in [seen(&[2, 4]), seen(&[3]), seen(&[5])] {
-        let nearest = plan
-            .objects
-            .iter()
-            .map(|o| (o.frame.world_from_object.translation.vector - expected).norm())
-            .fold(f64::INFINITY, f64::min);
-        assert!(nearest < 0.01, "no object within 1 cm of {expected:?}");
+    for (config, groups) in [
+        (without_split, vec![vec![2, 4], vec![3], vec![5]]),
+        (PlannerConfig::default(), vec![vec![2], vec![4], vec![3], vec![5]]),
+    ] {
+        let split = config.cluster.crease.is_some();
+        let (plan, rendered) = plan_rendered_with(config, &scene, &camera, &PlanOptions::default());
+        assert_eq!(plan.objects.len(), groups.len(), "crease split {split}");
+        let seen = |labels: &[u16]| {
+            let points: Vec<Vector3<f64>> = labels
+                .iter()
+                .flat_map(|&l| labelled_points(&rendered, &camera, l))
+                .filter(|p| p.z > z + 0.008)
+                .map(|p| p.coords)
+                .collect();
+            points.iter().sum::<Vector3<f64>>() / points.len() as f64
+        };
+        for group in &groups {
+            let expected = seen(group);
+            let nearest = plan
+                .objects
+                .iter()
+                .map(|o| (o.frame.world_from_object.translation.vector - expected).norm())
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                nearest < 0.01,
+                "crease split {split}: no object within 1 cm of {group:?}'s points"
+            );
+        }
     }
 }
 

@@ -560,10 +560,10 @@ mod physics {
 }
 
 mod eval {
-    use mvgrasp_core::{GraspNet, MomentsNet, Planner, PlannerConfig, ViewPolicy};
+    use mvgrasp_core::{CreaseConfig, GraspNet, MomentsNet, Planner, PlannerConfig, ViewPolicy};
     use mvgrasp_sim::eval::{
         Attempt, CollisionSite, End, Episode, EpisodeConfig, Failure, InProcess, Setting, Summary,
-        collision_list, markdown_table, run_episode,
+        collision_list, crease_setting, markdown_table, run_episode,
     };
     use mvgrasp_sim::grasp::{HandPart, Obstacle};
     use mvgrasp_sim::scene::Scenario;
@@ -580,6 +580,29 @@ mod eval {
             ("sideways:0.8", "not a view policy"),
         ] {
             let err = Setting::parse(bad).unwrap_err().to_string();
+            assert!(err.contains(why), "{bad}: {err}");
+        }
+    }
+
+    #[test]
+    fn crease_settings_parse_and_bad_ones_say_why() {
+        assert_eq!(crease_setting("on").unwrap(), Some(CreaseConfig::default()));
+        assert_eq!(crease_setting("off").unwrap(), None);
+        let c = crease_setting("3:8:4.5:0.25:120").unwrap().unwrap();
+        assert_eq!(
+            (c.smooth_radius_px, c.baseline_px, c.min_part_points),
+            (3, 8, 120)
+        );
+        assert!((c.min_valley_m - 0.0045).abs() < 1e-7 && (c.min_valley_ratio - 0.25).abs() < 1e-7);
+        for (bad, why) in [
+            ("maybe", "SMOOTH_PX:BASELINE_PX"),
+            ("2:6:5:0.4", "SMOOTH_PX:BASELINE_PX"),
+            ("2:0:5:0.4:200", "at least 1 px"),
+            ("2:6:-5:0.4:200", "valley depth"),
+            ("2:6:5:nan:200", "ratio"),
+            ("2.5:6:5:0.4:200", "smoothing radius"),
+        ] {
+            let err = crease_setting(bad).unwrap_err().to_string();
             assert!(err.contains(why), "{bad}: {err}");
         }
     }

@@ -1,0 +1,552 @@
+//! Splitting clusters at concave creases and depth steps, in the depth image.
+//!
+//! Euclidean clustering joins objects whose visible surfaces meet: in a pile
+//! one object leans on another and a crease forms where they touch, and a
+//! row of flying pixels can bridge a depth step between them. Seen from the
+//! camera both are valleys of the depth image: a pixel deeper than the mean
+//! of the two pixels `baseline_px` away on either side (along a row, a
+//! column or a diagonal), by more than noise allows. A convex edge (a box's
+//! corner, a cylinder's side) is a ridge and passes, and so does a smooth
+//! surface, a tilted plane included (perspective adds a term far below the
+//! threshold at these distances).
+//!
+//! Per cluster seen in a depth image:
+//! 1. the cluster's depth is box-filtered (a consumer camera's noise is
+//!    1-2 mm a pixel; the valley test needs a fraction of that);
+//! 2. valley pixels are marked;
+//! 3. the unmarked pixels form regions: 4-connected, neighbours within the
+//!    clustering tolerance in 3D;
+//! 4. the regions grow back over the marked pixels, breadth first;
+//! 5. a region under `min_part_points` joins the neighbour it shares the
+//!    most border with (the largest region when it touches none), so noise
+//!    and small concave details (a handle's root) do not make objects.
+//!
+//! A cluster left with one region is returned unchanged. A point cloud has
+//! no image and is not split. Two parts of one object that another object
+//! hides in the middle stay apart (Euclidean clustering alone would join
+//! them, and their occluder with them).
+
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, VecDeque};
+
+/// Settings of the crease split. The defaults were chosen on the tuning
+/// seeds (`sim eval --seed 800000`, `segmentation_recall`; sim/README.md):
+/// lower thresholds split piles as well but cut more single objects (a
+/// bottle's neck, a mug's handle) into parts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CreaseConfig {
+    /// Half-width of the box filter applied to the depth first (px).
+    pub smooth_radius_px: usize,
+    /// The valley test compares a pixel with the two this far away (px).
+    pub baseline_px: usize,
+    /// A valley is deeper than the mean of its two sides by more than this (m) ...
+    pub min_valley_m: f32,
+    /// ... and by more than this fraction of the distance to each side
+    /// (the pixel's footprint times the baseline), so the test means the
+    /// same angle near and far.
+    pub min_valley_ratio: f32,
+    /// Smaller parts join a neighbour (points); clusters under twice this
+    /// are not split.
+    pub min_part_points: usize,
+}
+
+impl Default for CreaseConfig {
+    fn default() -> Self {
+        Self {
+            smooth_radius_px: 2,
+            baseline_px: 6,
+            min_valley_m: 0.005,
+            min_valley_ratio: 0.4,
+            min_part_points: 200,
+        }
+    }
+}
+
+/// Points that came from a pinhole depth image, with where they came from.
+#[derive(Debug, Clone, Copy)]
+pub struct ImagePoints<'a> {
+    /// World points.
+    pub points: &'a [[f32; 3]],
+    /// The pixel (`v * width + u`) of each point.
+    pub pixels: &'a [u32],
+    /// Image width (px).
+    pub width: usize,
+    /// Camera origin in the world.
+    pub origin: [f32; 3],
+    /// Unit optical axis in the world (depth = axis . (p - origin)).
+    pub axis: [f32; 3],
+    /// Focal length (px): a pixel at depth z spans z / focal_px metres.
+    pub focal_px: f32,
+}
+
+/// `clusters` (indices into `image.points`) with each split where its
+/// surface shows a crease or a step, and whether any was split.
+pub fn split_at_creases(
+    image: &ImagePoints<'_>,
+    clusters: Vec<Vec<u32>>,
+    tolerance_m: f32,
+    config: &CreaseConfig,
+) -> (Vec<Vec<u32>>, bool) {
+    if image.pixels.len() != image.points.len() || image.width == 0 {
+        return (clusters, false);
+    }
+    let mut out = Vec::with_capacity(clusters.len());
+    let mut split = false;
+    let mut scratch = Scratch::default();
+    for cluster in clusters {
+        if cluster.len() < 2 * config.min_part_points.max(1) {
+            out.push(cluster);
+            continue;
+        }
+        let parts = split_one(image, &cluster, tolerance_m, config, &mut scratch);
+        if parts.len() > 1 {
+            split = true;
+            out.extend(parts);
+        } else {
+            out.push(cluster);
+        }
+    }
+    (out, split)
+}
+
+const NONE: u32 = u32::MAX;
+
+/// Buffers reused across clusters.
+#[derive(Default)]
+struct Scratch {
+    grid: Vec<u32>,
+    depth: Vec<f32>,
+    smooth: Vec<f32>,
+    sum: Vec<f64>,
+    count: Vec<u32>,
+    marked: Vec<bool>,
+    label: Vec<u32>,
+    xy: Vec<(u32, u32)>,
+}
+
+/// The cluster's parts, as indices into the points (one part: no split).
+fn split_one(
+    image: &ImagePoints<'_>,
+    cluster: &[u32],
+    tolerance_m: f32,
+    config: &CreaseConfig,
+    s: &mut Scratch,
+) -> Vec<Vec<u32>> {
+    let w = image.width;
+    let n = cluster.len();
+    // The cluster's pixel box and local grid (cluster position per pixel).
+    let (mut u0, mut v0, mut u1, mut v1) = (usize::MAX, usize::MAX, 0, 0);
+    for &i in cluster {
+        let p = image.pixels[i as usize] as usize;
+        let (u, v) = (p % w, p / w);
+        u0 = u0.min(u);
+        u1 = u1.max(u);
+        v0 = v0.min(v);
+        v1 = v1.max(v);
+    }
+    let (bw, bh) = (u1 - u0 + 1, v1 - v0 + 1);
+    s.grid.clear();
+    s.grid.resize(bw * bh, NONE);
+    s.xy.clear();
+    s.depth.clear();
+    let [ox, oy, oz] = image.origin;
+    let [ax, ay, az] = image.axis;
+    for (k, &i) in cluster.iter().enumerate() {
+        let p = image.pixels[i as usize] as usize;
+        let (x, y) = (p % w - u0, p / w - v0);
+        s.grid[y * bw + x] = k as u32;
+        s.xy.push((x as u32, y as u32));
+        let q = image.points[i as usize];
+        s.depth
+            .push(ax * (q[0] - ox) + ay * (q[1] - oy) + az * (q[2] - oz));
+    }
+
+    // 1. Box filter through integral images of depth and count (f64 sums:
+    // f32 would lose millimetres over a few thousand pixels).
+    let sw = bw + 1;
+    s.sum.clear();
+    s.sum.resize(sw * (bh + 1), 0.0);
+    s.count.clear();
+    s.count.resize(sw * (bh + 1), 0);
+    for y in 0..bh {
+        let (mut row_sum, mut row_count) = (0.0f64, 0u32);
+        for x in 0..bw {
+            let k = s.grid[y * bw + x];
+            if k != NONE {
+                row_sum += f64::from(s.depth[k as usize]);
+                row_count += 1;
+            }
+            s.sum[(y + 1) * sw + x + 1] = s.sum[y * sw + x + 1] + row_sum;
+            s.count[(y + 1) * sw + x + 1] = s.count[y * sw + x + 1] + row_count;
+        }
+    }
+    let r = config.smooth_radius_px;
+    s.smooth.clear();
+    for &(x, y) in &s.xy {
+        let (x, y) = (x as usize, y as usize);
+        let (xa, xb) = (x.saturating_sub(r), (x + r + 1).min(bw));
+        let (ya, yb) = (y.saturating_sub(r), (y + r + 1).min(bh));
+        let sum = s.sum[yb * sw + xb] - s.sum[ya * sw + xb] - s.sum[yb * sw + xa] + s.sum[ya * sw + xa];
+        let count =
+            s.count[yb * sw + xb] + s.count[ya * sw + xa] - s.count[ya * sw + xb] - s.count[yb * sw + xa];
+        // The pixel itself is in its window, so count >= 1.
+        s.smooth.push((sum / f64::from(count)) as f32);
+    }
+
+    // 2. Valleys along a row, a column and the two diagonals.
+    let b = config.baseline_px as i64;
+    let at = |x: i64, y: i64| -> u32 {
+        if x < 0 || y < 0 || x >= bw as i64 || y >= bh as i64 {
+            NONE
+        } else {
+            s.grid[y as usize * bw + x as usize]
+        }
+    };
+    s.marked.clear();
+    for (k, &(x, y)) in s.xy.iter().enumerate() {
+        let (x, y) = (i64::from(x), i64::from(y));
+        let centre = s.smooth[k];
+        let footprint = centre / image.focal_px * b as f32;
+        let mut valley = false;
+        for (dx, dy, length) in [
+            (1, 0, 1.0),
+            (0, 1, 1.0),
+            (1, 1, 2f32.sqrt()),
+            (1, -1, 2f32.sqrt()),
+        ] {
+            let (a, c) = (at(x - b * dx, y - b * dy), at(x + b * dx, y + b * dy));
+            if a == NONE || c == NONE {
+                continue;
+            }
+            let excess = centre - 0.5 * (s.smooth[a as usize] + s.smooth[c as usize]);
+            if excess
+                > config
+                    .min_valley_m
+                    .max(config.min_valley_ratio * footprint * length)
+            {
+                valley = true;
+                break;
+            }
+        }
+        s.marked.push(valley);
+    }
+
+    // 3. Regions of unmarked pixels; 4. grown back over the marked ones.
+    let points = image.points;
+    let tol_sq = tolerance_m * tolerance_m;
+    let close = |a: usize, b: usize| {
+        let (p, q) = (points[cluster[a] as usize], points[cluster[b] as usize]);
+        (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2) <= tol_sq
+    };
+    const NEIGHBOURS: [(i64, i64); 4] = [(1, 0), (-1, 0), (0, 1), (0, -1)];
+    s.label.clear();
+    s.label.resize(n, NONE);
+    let mut regions = 0u32;
+    let mut stack = Vec::new();
+    for seed in 0..n {
+        if s.marked[seed] || s.label[seed] != NONE {
+            continue;
+        }
+        s.label[seed] = regions;
+        stack.push(seed);
+        while let Some(k) = stack.pop() {
+            let (x, y) = (i64::from(s.xy[k].0), i64::from(s.xy[k].1));
+            for (dx, dy) in NEIGHBOURS {
+                let m = at(x + dx, y + dy);
+                if m != NONE && !s.marked[m as usize] && s.label[m as usize] == NONE && close(k, m as usize) {
+                    s.label[m as usize] = regions;
+                    stack.push(m as usize);
+                }
+            }
+        }
+        regions += 1;
+    }
+    if regions <= 1 {
+        return vec![cluster.to_vec()];
+    }
+    let mut queue: VecDeque<usize> = (0..n).filter(|&k| s.label[k] != NONE).collect();
+    while let Some(k) = queue.pop_front() {
+        let (x, y) = (i64::from(s.xy[k].0), i64::from(s.xy[k].1));
+        for (dx, dy) in NEIGHBOURS {
+            let m = at(x + dx, y + dy);
+            if m != NONE && s.label[m as usize] == NONE && close(k, m as usize) {
+                s.label[m as usize] = s.label[k];
+                queue.push_back(m as usize);
+            }
+        }
+    }
+
+    // 5. Small regions join the neighbour they share the most border with.
+    let regions = regions as usize;
+    let mut size = vec![0usize; regions];
+    for &l in &s.label {
+        if l != NONE {
+            size[l as usize] += 1;
+        }
+    }
+    let mut border: Vec<Vec<(u32, u32)>> = vec![Vec::new(); regions];
+    for (k, &(x, y)) in s.xy.iter().enumerate() {
+        let l = s.label[k];
+        if l == NONE {
+            continue;
+        }
+        for (dx, dy) in [(1, 0), (0, 1)] {
+            let m = at(i64::from(x) + dx, i64::from(y) + dy);
+            if m == NONE {
+                continue;
+            }
+            let o = s.label[m as usize];
+            if o != NONE && o != l && close(k, m as usize) {
+                border[l as usize].push((o, 1));
+                border[o as usize].push((l, 1));
+            }
+        }
+    }
+    let mut parent: Vec<u32> = (0..regions as u32).collect();
+    let find = |parent: &mut Vec<u32>, mut x: u32| {
+        while parent[x as usize] != x {
+            let up = parent[parent[x as usize] as usize];
+            parent[x as usize] = up;
+            x = up;
+        }
+        x
+    };
+    let mut heap: BinaryHeap<Reverse<(usize, u32)>> = (0..regions as u32)
+        .map(|r| Reverse((size[r as usize], r)))
+        .collect();
+    let mut roots = regions;
+    while let Some(Reverse((sz, r))) = heap.pop() {
+        if sz >= config.min_part_points || roots == 1 {
+            break;
+        }
+        if find(&mut parent, r) != r || size[r as usize] != sz {
+            continue; // stale entry
+        }
+        // Shared border per neighbouring root.
+        let mut shared: Vec<(u32, u32)> = std::mem::take(&mut border[r as usize])
+            .into_iter()
+            .map(|(o, c)| (find(&mut parent, o), c))
+            .filter(|&(o, _)| o != r)
+            .collect();
+        shared.sort_unstable();
+        let mut best: Option<(u32, u32)> = None; // (count, root)
+        let mut i = 0;
+        while i < shared.len() {
+            let o = shared[i].0;
+            let mut c = 0;
+            while i < shared.len() && shared[i].0 == o {
+                c += shared[i].1;
+                i += 1;
+            }
+            if best.is_none_or(|(bc, bo)| (c, Reverse(o)) > (bc, Reverse(bo))) {
+                best = Some((c, o));
+            }
+        }
+        // Touching no region, the largest other region takes it (there is
+        // one: `roots` > 1).
+        let Some(target) = best.map(|(_, o)| o).or_else(|| {
+            (0..regions as u32)
+                .filter(|&o| o != r && parent[o as usize] == o)
+                .max_by_key(|&o| (size[o as usize], Reverse(o)))
+        }) else {
+            break;
+        };
+        parent[r as usize] = target;
+        size[target as usize] += size[r as usize];
+        let mut moved: Vec<(u32, u32)> = shared.into_iter().filter(|&(o, _)| o != target).collect();
+        border[target as usize].append(&mut moved);
+        roots -= 1;
+        heap.push(Reverse((size[target as usize], target)));
+    }
+    if roots <= 1 {
+        return vec![cluster.to_vec()];
+    }
+
+    // Parts by root; points no region reached join the largest part.
+    let mut part_of_root = vec![NONE; regions];
+    let mut parts: Vec<Vec<u32>> = Vec::new();
+    let Some(largest) = (0..regions as u32)
+        .filter(|&o| parent[o as usize] == o)
+        .max_by_key(|&o| (size[o as usize], Reverse(o)))
+    else {
+        return vec![cluster.to_vec()];
+    };
+    for (&label, &point) in s.label.iter().zip(cluster) {
+        let root = match label {
+            NONE => largest,
+            l => find(&mut parent, l),
+        };
+        if part_of_root[root as usize] == NONE {
+            part_of_root[root as usize] = parts.len() as u32;
+            parts.push(Vec::new());
+        }
+        parts[part_of_root[root as usize] as usize].push(point);
+    }
+    parts
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::SplitMix64;
+    use crate::segment::{ClusterConfig, euclidean_clusters};
+
+    const W: usize = 160;
+    const H: usize = 100;
+    const F: f32 = 600.0;
+
+    /// A depth image seen by a camera at the origin looking along +z:
+    /// `depth(x, y)` (metres, lateral coordinates at 0.8 m) per pixel, with
+    /// Gaussian noise of `sigma` and millimetre rounding as a consumer camera
+    /// gives; `None` is no reading.
+    fn image(depth: impl Fn(f32, f32) -> Option<f32>, sigma: f64, seed: u64) -> (Vec<[f32; 3]>, Vec<u32>) {
+        let mut rng = SplitMix64::new(seed);
+        let (mut points, mut pixels) = (Vec::new(), Vec::new());
+        for v in 0..H {
+            for u in 0..W {
+                let (x, y) = (
+                    (u as f32 - W as f32 / 2.0) / F * 0.8,
+                    (v as f32 - H as f32 / 2.0) / F * 0.8,
+                );
+                let Some(z) = depth(x, y) else { continue };
+                let z = ((z + (sigma * rng.gaussian()) as f32) * 1000.0).round() / 1000.0;
+                let (px, py) = (
+                    (u as f32 - W as f32 / 2.0) / F * z,
+                    (v as f32 - H as f32 / 2.0) / F * z,
+                );
+                points.push([px, py, z]);
+                pixels.push((v * W + u) as u32);
+            }
+        }
+        (points, pixels)
+    }
+
+    /// The parts of the one Euclidean cluster of the image, largest first.
+    fn parts(points: &[[f32; 3]], pixels: &[u32]) -> Vec<usize> {
+        let config = ClusterConfig::default();
+        let clusters = euclidean_clusters(points, &config);
+        assert_eq!(clusters.len(), 1, "the scene must be one Euclidean cluster");
+        let image = ImagePoints {
+            points,
+            pixels,
+            width: W,
+            origin: [0.0; 3],
+            axis: [0.0, 0.0, 1.0],
+            focal_px: F,
+        };
+        let crease = config.crease.expect("on by default");
+        let (out, split) = split_at_creases(&image, clusters, config.tolerance_m, &crease);
+        assert_eq!(split, out.len() > 1);
+        let mut all: Vec<u32> = out.iter().flatten().copied().collect();
+        all.sort_unstable();
+        assert_eq!(
+            all,
+            (0..points.len() as u32).collect::<Vec<_>>(),
+            "every point in exactly one part"
+        );
+        let mut sizes: Vec<usize> = out.iter().map(Vec::len).collect();
+        sizes.sort_unstable_by(|a, b| b.cmp(a));
+        sizes
+    }
+
+    /// Two planes at 45 degrees meeting in a valley (two boxes leaning
+    /// together) split along the valley; the same planes meeting in a ridge
+    /// (one box's corner) do not.
+    #[test]
+    fn a_valley_splits_and_a_ridge_does_not() {
+        for seed in 0..4 {
+            let (points, pixels) = image(|x, _| Some(0.8 + 0.03 - x.abs()), 0.0015, seed);
+            let sizes = parts(&points, &pixels);
+            assert_eq!(sizes.len(), 2, "valley, seed {seed}: {sizes:?}");
+            assert!(
+                sizes[1] * 10 > sizes[0] * 8,
+                "valley halves should be alike: {sizes:?}"
+            );
+            let (points, pixels) = image(|x, _| Some(0.8 + x.abs()), 0.0015, seed);
+            assert_eq!(parts(&points, &pixels).len(), 1, "ridge, seed {seed}");
+        }
+    }
+
+    type Depth = dyn Fn(f32, f32) -> Option<f32>;
+
+    /// Smooth surfaces, tilted or curved outwards, stay whole under noise.
+    #[test]
+    fn smooth_surfaces_stay_whole() {
+        let surfaces: [(&str, Box<Depth>); 3] = [
+            ("tilted plane", Box::new(|x, y| Some(0.8 + 0.6 * x - 0.3 * y))),
+            (
+                "lying cylinder",
+                Box::new(|x, _| (x.abs() < 0.045).then(|| 0.8 - (0.05f32.powi(2) - x * x).sqrt())),
+            ),
+            (
+                "bowl-like dish",
+                Box::new(|x, y| Some(0.8 + 0.5 * (x * x + y * y))),
+            ),
+        ];
+        for (name, depth) in &surfaces {
+            for seed in 0..3 {
+                let (points, pixels) = image(depth, 0.002, seed);
+                assert_eq!(parts(&points, &pixels), vec![points.len()], "{name}, seed {seed}");
+            }
+        }
+    }
+
+    /// A step of 2.5 cm between two flat objects, bridged by a column of
+    /// flying pixels halfway in depth: one Euclidean cluster, two parts (the
+    /// flying pixels join one side).
+    #[test]
+    fn a_bridged_step_splits() {
+        let depth = |x: f32, _: f32| {
+            Some(if x < -0.0005 {
+                0.80
+            } else if x < 0.0008 {
+                0.8125
+            } else {
+                0.825
+            })
+        };
+        let (points, pixels) = image(depth, 0.001, 7);
+        let sizes = parts(&points, &pixels);
+        assert_eq!(sizes.len(), 2, "{sizes:?}");
+    }
+
+    /// A shallow dent smaller than a part (a few hundred pixels) stays with
+    /// its object.
+    #[test]
+    fn a_small_dent_stays() {
+        let depth = |x: f32, y: f32| {
+            let r = (x * x + y * y).sqrt();
+            Some(0.8 + (0.004 - r).max(0.0) * 2.0)
+        };
+        let (points, pixels) = image(depth, 0.0015, 3);
+        assert_eq!(parts(&points, &pixels).len(), 1);
+    }
+
+    /// Holes (no readings) and a cluster too small to split are left alone.
+    #[test]
+    fn small_or_holed_clusters_are_left_alone() {
+        let (points, pixels) = image(|x, y| (x.abs() < 0.004 && y.abs() < 0.004).then_some(0.8), 0.0, 0);
+        assert!(points.len() < 2 * CreaseConfig::default().min_part_points);
+        let image = ImagePoints {
+            points: &points,
+            pixels: &pixels,
+            width: W,
+            origin: [0.0; 3],
+            axis: [0.0, 0.0, 1.0],
+            focal_px: F,
+        };
+        let cluster: Vec<u32> = (0..points.len() as u32).collect();
+        let (out, split) = split_at_creases(&image, vec![cluster.clone()], 0.01, &CreaseConfig::default());
+        assert_eq!((out, split), (vec![cluster], false));
+        let holed = image_with_holes();
+        assert_eq!(parts(&holed.0, &holed.1), vec![holed.0.len()]);
+    }
+
+    fn image_with_holes() -> (Vec<[f32; 3]>, Vec<u32>) {
+        image(
+            |x, y| ((x * 500.0).sin() * (y * 700.0).sin() < 0.9).then_some(0.8 + 0.2 * x),
+            0.0015,
+            11,
+        )
+    }
+}
