@@ -286,12 +286,7 @@ impl Planner {
     }
 
     fn segment_timed(&self, scene: &SceneInput<'_>, timings: &mut StageTimings) -> Result<Segmentation> {
-        let mut clock = Instant::now();
-        let mut lap = |slot: &mut Duration| {
-            let now = Instant::now();
-            *slot = now - clock;
-            clock = now;
-        };
+        let mut clock = Stopwatch::start();
 
         // The table is fitted on random readings; a grid pass then marks the
         // blocks near what stands on it, and one full-resolution pass over
@@ -310,9 +305,9 @@ impl Planner {
             // cause when there is none).
             sample = world_points(sensor, pose, workspace)?;
         }
-        lap(&mut timings.sensor);
+        clock.lap(&mut timings.sensor);
         let table = fit_table(&sample.points, table_config)?;
-        lap(&mut timings.table);
+        clock.lap(&mut timings.table);
         let half_space = table.above(table_config.object_min_height_m);
         let near = match sensor {
             SensorInput::Depth(frame) if table_config.mask_stride > 1 => Some(BlockMask::from_frame(
@@ -325,7 +320,7 @@ impl Planner {
             _ => None,
         };
         let above = world_points_above(sensor, pose, workspace, &half_space, near.as_ref())?;
-        lap(&mut timings.sensor_objects);
+        clock.lap(&mut timings.sensor_objects);
 
         let cluster_config = &self.config.cluster;
         let mut clusters = euclidean_clusters(&above.points, cluster_config);
@@ -347,7 +342,7 @@ impl Planner {
                 clusters = fixed_order(&above.points, clusters, cluster_config.max_objects);
             }
         }
-        lap(&mut timings.cluster);
+        clock.lap(&mut timings.cluster);
         Ok(Segmentation {
             table,
             points: above.points,
@@ -366,19 +361,14 @@ impl Planner {
             clusters,
             ..
         } = self.segment_timed(scene, &mut timings)?;
-        let mut clock = Instant::now();
-        let mut lap = |slot: &mut Duration| {
-            let now = Instant::now();
-            *slot = now - clock;
-            clock = now;
-        };
+        let mut clock = Stopwatch::start();
 
         let camera = Point3::from(scene.world_from_camera.translation.vector);
         let framed: Vec<(ObjectFrame, Vec<[f32; 3]>)> = clusters
             .iter()
             .map(|c| object_frame(&above, c, &camera))
             .collect();
-        lap(&mut timings.frames);
+        clock.lap(&mut timings.frames);
 
         let (l, s) = (self.contract.input_size_px, self.contract.pixel_size_m);
         let rendered: Vec<Vec<OrthoView>> = framed
@@ -394,7 +384,7 @@ impl Planner {
                     .collect()
             })
             .collect();
-        lap(&mut timings.views);
+        clock.lap(&mut timings.views);
 
         let mut batch = ViewBatch::new(l);
         let mut inferred = Vec::new();
@@ -427,7 +417,7 @@ impl Planner {
                 points,
             });
         }
-        lap(&mut timings.select);
+        clock.lap(&mut timings.select);
 
         Ok(Prepared {
             objects,
@@ -574,4 +564,20 @@ impl Planner {
 /// World-frame approach direction of a grasp (its +z axis).
 pub fn approach_of(grasp: &Grasp) -> Vector3<f64> {
     grasp.world_from_grasp.rotation * Vector3::z()
+}
+
+/// Times consecutive stages: each lap is the time since the previous one.
+struct Stopwatch(Instant);
+
+impl Stopwatch {
+    fn start() -> Self {
+        Self(Instant::now())
+    }
+
+    /// Writes the time since the last lap (or the start) into `slot`.
+    fn lap(&mut self, slot: &mut Duration) {
+        let now = Instant::now();
+        *slot = now - self.0;
+        self.0 = now;
+    }
 }

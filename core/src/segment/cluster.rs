@@ -25,6 +25,7 @@
 use rustc_hash::FxHashMap;
 
 use super::CreaseConfig;
+use super::union_find::UnionFind;
 
 /// Settings of the clustering stage.
 #[derive(Debug, Clone, PartialEq)]
@@ -402,42 +403,6 @@ impl CellIndex {
             }
             CellIndex::Sparse(map) => (*map.entry(c).or_insert(new_id), 0),
         }
-    }
-}
-
-/// Union-find with path halving and union by size.
-struct UnionFind {
-    parent: Vec<u32>,
-    size: Vec<u32>,
-}
-
-impl UnionFind {
-    fn new(n: usize) -> Self {
-        Self {
-            parent: (0..n as u32).collect(),
-            size: vec![1; n],
-        }
-    }
-
-    fn find(&mut self, mut x: usize) -> usize {
-        while self.parent[x] as usize != x {
-            let grandparent = self.parent[self.parent[x] as usize];
-            self.parent[x] = grandparent;
-            x = grandparent as usize;
-        }
-        x
-    }
-
-    /// Joins the sets of two distinct roots; returns the new root.
-    fn union_roots(&mut self, a: usize, b: usize) -> usize {
-        let (big, small) = if self.size[a] < self.size[b] {
-            (b, a)
-        } else {
-            (a, b)
-        };
-        self.parent[small] = big as u32;
-        self.size[big] += self.size[small];
-        big
     }
 }
 

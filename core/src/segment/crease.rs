@@ -29,6 +29,8 @@
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, VecDeque};
 
+use super::union_find::UnionFind;
+
 /// Settings of the crease split. The defaults were chosen on the tuning
 /// seeds (`sim eval --seed 800000`, `segmentation_recall`; sim/README.md):
 /// lower thresholds split piles as well but cut more single objects (a
@@ -302,30 +304,22 @@ fn split_one(
             }
         }
     }
-    let mut parent: Vec<u32> = (0..regions as u32).collect();
-    let find = |parent: &mut Vec<u32>, mut x: u32| {
-        while parent[x as usize] != x {
-            let up = parent[parent[x as usize] as usize];
-            parent[x as usize] = up;
-            x = up;
-        }
-        x
-    };
-    let mut heap: BinaryHeap<Reverse<(usize, u32)>> = (0..regions as u32)
-        .map(|r| Reverse((size[r as usize], r)))
+    let mut sets = UnionFind::with_sizes(size.iter().map(|&n| n as u32).collect());
+    let mut heap: BinaryHeap<Reverse<(u32, u32)>> = (0..regions as u32)
+        .map(|r| Reverse((sets.size(r as usize), r)))
         .collect();
     let mut roots = regions;
     while let Some(Reverse((sz, r))) = heap.pop() {
-        if sz >= config.min_part_points || roots == 1 {
+        if sz as usize >= config.min_part_points || roots == 1 {
             break;
         }
-        if find(&mut parent, r) != r || size[r as usize] != sz {
+        if sets.find(r as usize) != r as usize || sets.size(r as usize) != sz {
             continue; // stale entry
         }
         // Shared border per neighbouring root.
         let mut shared: Vec<(u32, u32)> = std::mem::take(&mut border[r as usize])
             .into_iter()
-            .map(|(o, c)| (find(&mut parent, o), c))
+            .map(|(o, c)| (sets.find(o as usize) as u32, c))
             .filter(|&(o, _)| o != r)
             .collect();
         shared.sort_unstable();
@@ -346,17 +340,17 @@ fn split_one(
         // one: `roots` > 1).
         let Some(target) = best.map(|(_, o)| o).or_else(|| {
             (0..regions as u32)
-                .filter(|&o| o != r && parent[o as usize] == o)
-                .max_by_key(|&o| (size[o as usize], Reverse(o)))
+                .filter(|&o| o != r && sets.is_root(o as usize))
+                .max_by_key(|&o| (sets.size(o as usize), Reverse(o)))
         }) else {
             break;
         };
-        parent[r as usize] = target;
-        size[target as usize] += size[r as usize];
-        let mut moved: Vec<(u32, u32)> = shared.into_iter().filter(|&(o, _)| o != target).collect();
-        border[target as usize].append(&mut moved);
+        // `r` is the lightest root, so the target stays the root.
+        let root = sets.union_roots(target as usize, r as usize) as u32;
+        let mut moved: Vec<(u32, u32)> = shared.into_iter().filter(|&(o, _)| o != root).collect();
+        border[root as usize].append(&mut moved);
         roots -= 1;
-        heap.push(Reverse((size[target as usize], target)));
+        heap.push(Reverse((sets.size(root as usize), root)));
     }
     if roots <= 1 {
         return vec![cluster.to_vec()];
@@ -366,15 +360,15 @@ fn split_one(
     let mut part_of_root = vec![NONE; regions];
     let mut parts: Vec<Vec<u32>> = Vec::new();
     let Some(largest) = (0..regions as u32)
-        .filter(|&o| parent[o as usize] == o)
-        .max_by_key(|&o| (size[o as usize], Reverse(o)))
+        .filter(|&o| sets.is_root(o as usize))
+        .max_by_key(|&o| (sets.size(o as usize), Reverse(o)))
     else {
         return vec![cluster.to_vec()];
     };
     for (&label, &point) in s.label.iter().zip(cluster) {
         let root = match label {
             NONE => largest,
-            l => find(&mut parent, l),
+            l => sets.find(l as usize) as u32,
         };
         if part_of_root[root as usize] == NONE {
             part_of_root[root as usize] = parts.len() as u32;

@@ -4,6 +4,7 @@
 mod cluster;
 mod crease;
 mod table;
+mod union_find;
 
 pub use cluster::{ClusterConfig, MAX_DENSE_CELLS, euclidean_clusters, fixed_order};
 pub use crease::{CreaseConfig, ImagePoints, split_at_creases};

@@ -3,7 +3,7 @@
 
 use mvgrasp_core::decode::HandConfig;
 use mvgrasp_core::{
-    ClusterConfig, GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig, ViewPolicy, approach_of,
+    ClusterConfig, GraspNet, MomentsNet, Plan, PlanOptions, Planner, PlannerConfig, ViewPolicy, approach_of,
 };
 use nalgebra::{Point3, Vector3};
 
@@ -29,6 +29,14 @@ fn visible_centroids(
         .collect()
 }
 
+/// Distance from `point` to the nearest planned object's frame origin (m).
+fn nearest_object_m(plan: &Plan, point: &Vector3<f64>) -> f64 {
+    plan.objects
+        .iter()
+        .map(|o| (o.frame.world_from_object.translation.vector - point).norm())
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// Every visible shape is detected once, at its visible centroid (1 cm).
 fn check_detection(scene: &Scene, camera: &Camera) {
     let (plan, rendered) = plan_rendered(scene, camera, &PlanOptions::default());
@@ -38,11 +46,7 @@ fn check_detection(scene: &Scene, camera: &Camera) {
         .collect();
     assert_eq!(plan.objects.len(), expected.len(), "object count");
     for truth in &expected {
-        let nearest = plan
-            .objects
-            .iter()
-            .map(|o| (o.frame.world_from_object.translation.vector - truth).norm())
-            .fold(f64::INFINITY, f64::min);
+        let nearest = nearest_object_m(&plan, truth);
         assert!(
             nearest < 0.01,
             "no object within 1 cm of {truth:?} (nearest {nearest:.4} m)"
@@ -130,11 +134,7 @@ fn touching_objects_split_at_the_crease_where_they_meet() {
         };
         for group in &groups {
             let expected = seen(group);
-            let nearest = plan
-                .objects
-                .iter()
-                .map(|o| (o.frame.world_from_object.translation.vector - expected).norm())
-                .fold(f64::INFINITY, f64::min);
+            let nearest = nearest_object_m(&plan, &expected);
             assert!(
                 nearest < 0.01,
                 "crease split {split}: no object within 1 cm of {group:?}'s points"
@@ -343,7 +343,7 @@ fn plans_with_hands<const N: usize>(
     camera: &Camera,
     net: &mut MomentsNet,
     hands: [HandConfig; N],
-) -> [mvgrasp_core::Plan; N] {
+) -> [Plan; N] {
     let rendered = scene::render(scene, camera);
     let bytes = rendered.depth_bytes();
     let input = camera.scene_input(&bytes, table_workspace(scene));
