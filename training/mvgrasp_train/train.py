@@ -5,7 +5,8 @@
         [--device cuda] [--schedule cosine]
 
 Splits 80/20 by object instance, trains with MSE on the four maps and Adam
-(lr 1e-3; `--init RUN --lr 1e-4` continues a run as a second, lower-rate stage).
+(lr 1e-3; `--init RUN --lr 1e-4` continues a run as a second, lower-rate stage;
+RUN may be a shipped ONNX file read back by import_onnx.py).
 `--positive-weight W` weights the squared error at pixels whose target
 quality is above 0 (the painted positives) W times (1: plain MSE, the
 paper's loss). Augments each training view (augment.py), and after every epoch
@@ -92,6 +93,9 @@ def main(argv=None):
     p.add_argument("--schedule", choices=("constant", "cosine"), default="constant")
     p.add_argument("--eval-every", type=int, default=1, help="evaluate the held-out sample every N epochs")
     p.add_argument("--init", help="start from this run's model.pt (e.g. a second stage at a lower --lr)")
+    p.add_argument("--freeze-batchnorm", action="store_true",
+                   help="keep BatchNorm in inference mode (running statistics fixed; scale and shift still "
+                        "learned); implied by an --init run that is frozen (import_onnx.py)")
     p.add_argument("--hold-out-families", default="",
                    help="comma-separated shape families never trained on (evaluated apart)")
     args = p.parse_args(argv)
@@ -125,6 +129,7 @@ def main(argv=None):
         if saved["architecture"] != args.architecture:
             raise SystemExit(f"--init {args.init} is {saved['architecture']}, not {args.architecture}")
         model.load_state_dict(saved["state_dict"])
+        args.freeze_batchnorm = args.freeze_batchnorm or saved.get("frozen_batchnorm", False)
     model = model.to(device)
     optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
     config = {k: v for k, v in vars(args).items()}
@@ -149,8 +154,15 @@ def main(argv=None):
             share = max(share, (time.time() - started) / (args.minutes * 60))
         return min(share, 1.0)
 
-    for epoch in range(1, args.epochs + 1):
+    def train_mode():
         model.train()
+        if args.freeze_batchnorm:
+            for m in model.modules():
+                if isinstance(m, torch.nn.BatchNorm2d):
+                    m.eval()
+
+    for epoch in range(1, args.epochs + 1):
+        train_mode()
         order = rng.permutation(len(train_idx) if on_device else train_idx)
         losses, t0 = [], time.time()
         for step in range(steps):
@@ -191,7 +203,8 @@ def main(argv=None):
             break
     state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
     torch.save({"architecture": args.architecture, "state_dict": state, "epochs": epoch,
-                "train_s": time.time() - started}, os.path.join(args.out, "model.pt"))
+                "train_s": time.time() - started, "frozen_batchnorm": args.freeze_batchnorm},
+               os.path.join(args.out, "model.pt"))
     final = evaluate(model, ds, eval_idx, device=device)
     if family_idx:
         final["unseen_families"] = {"families": sorted(unseen), **evaluate(model, ds, family_idx, device=device)}

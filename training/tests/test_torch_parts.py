@@ -154,6 +154,33 @@ class Network(unittest.TestCase):
             session = onnxruntime.InferenceSession(path, providers=["CPUExecutionProvider"])
             self.assertEqual(session.get_inputs()[0].shape[0], "batch")
 
+    def test_an_exported_file_reads_back_into_the_same_function_and_trains_with_frozen_batchnorm(self):
+        import torch
+        from torch import nn
+        from mvgrasp_train import export, import_onnx
+        for arch in ("paper", "narrow"):
+            model = self.trained_a_little(arch, 48)
+            contract = {"input_size_px": 48, "pixel_size_m": 0.0025, "width_scale_m": 0.2,
+                        "normalisation": "cube-v1"}
+            with tempfile.TemporaryDirectory() as d:
+                path = os.path.join(d, "m.onnx")
+                export.export(model, 48, path, export.contract_metadata(contract, "t-1", "sim-test"))
+                back = import_onnx.from_onnx(path, arch)
+                views = np.random.default_rng(3).random((3, 1, 48, 48), dtype=np.float32)
+                self.assertLess(import_onnx.largest_difference(back, path, views), export.TOLERANCE, arch)
+                with torch.no_grad():
+                    diff = (back(torch.from_numpy(views)) - model(torch.from_numpy(views))).abs().max().item()
+                self.assertLess(diff, 1e-4, arch)
+            # Its BatchNorm layers are identities: in inference mode a step
+            # of training must not touch their statistics.
+            for m in back.modules():
+                if isinstance(m, nn.BatchNorm2d):
+                    m.eval()
+            before = [m.running_mean.clone() for m in back.modules() if isinstance(m, nn.BatchNorm2d)]
+            back(torch.rand(2, 1, 48, 48)).square().mean().backward()
+            after = [m.running_mean for m in back.modules() if isinstance(m, nn.BatchNorm2d)]
+            self.assertTrue(all(torch.equal(a, b) for a, b in zip(before, after)))
+
 
 if __name__ == "__main__":
     unittest.main()

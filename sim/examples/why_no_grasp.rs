@@ -1,0 +1,181 @@
+//! Why episodes of `sim eval` end with "no grasp above tau": the episodes of
+//! one scenario and setting (seen families, shipped model, in-process), and
+//! at each such end the planner's view of the last frame: the objects still
+//! visible (their family, matched by position to the scene's start), the
+//! objects detected and their extents, how many candidates at tau the hand
+//! check refused, and, planned again at tau 0, how many grasps were kept and
+//! the best quality any reached. (Whether those grasps would have held:
+//! run the same setting at tau 0.)
+//!
+//!     cargo run --release -p mvgrasp-sim --example why_no_grasp [SCENARIO] [SETTING] [EPISODES] [SEED] [MODEL] [FAMILIES]
+//!
+//! Defaults: packed, all:0.1, 16 episodes from seed 900000 (the results/
+//! scenes), models/mvgrasp.onnx, the 8 seen families. Each attempt is
+//! listed with its outcome, its approach's angle below the horizontal and
+//! its quality. Needs ORT_DYLIB_PATH.
+use mvgrasp_core::{PlanOptions, Planner, PlannerConfig, Workspace};
+use mvgrasp_server::settings::ModelSettings;
+use mvgrasp_sim::camera::Frame;
+use mvgrasp_sim::eval::{End, EpisodeConfig, GraspSource, InProcess, PlannedGrasp, Setting, run_episode};
+use mvgrasp_sim::objects::{Catalog, Family};
+use mvgrasp_sim::scene::Scenario;
+
+struct Diagnosing<'a> {
+    inner: InProcess<'a>,
+    last: String,
+    left: Vec<[f64; 2]>,
+}
+
+impl GraspSource for Diagnosing<'_> {
+    fn best_grasp(
+        &mut self,
+        frame: &Frame,
+        workspace: Workspace,
+        options: &PlanOptions,
+    ) -> mvgrasp_sim::Result<Option<PlannedGrasp>> {
+        let best = self.inner.best_grasp(frame, workspace, options)?;
+        if best.is_none() {
+            let bytes = frame.depth_le_bytes();
+            let input = frame.scene_input(&bytes, workspace);
+            let at_tau = PlanOptions {
+                max_grasps: 1000,
+                ..options.clone()
+            };
+            let all = PlanOptions {
+                min_quality: 0.0,
+                ..at_tau.clone()
+            };
+            let plan = |options: &PlanOptions, net: &mut dyn mvgrasp_core::GraspNet| {
+                self.inner
+                    .planner
+                    .plan(&input, options, net)
+                    .map_err(|e| mvgrasp_sim::Error::Scene(format!("planner: {e}")))
+            };
+            let p = plan(&at_tau, self.inner.net)?;
+            let q = plan(&all, self.inner.net)?;
+            let labels: std::collections::HashSet<u16> =
+                frame.labels.iter().copied().filter(|&l| l >= 2).collect();
+            self.left = labels
+                .iter()
+                .map(|&l| {
+                    let pts = frame.labelled_points(l);
+                    let n = pts.len().max(1) as f64;
+                    [
+                        pts.iter().map(|p| p.x).sum::<f64>() / n,
+                        pts.iter().map(|p| p.y).sum::<f64>() / n,
+                    ]
+                })
+                .collect();
+            let best_q = q.grasps.iter().map(|g| g.quality).fold(0.0f32, f32::max);
+
+            let sizes: Vec<String> = q
+                .objects
+                .iter()
+                .map(|o| {
+                    let (a, b) = (o.frame.extent_min_m, o.frame.extent_max_m);
+                    format!(
+                        "{:.0}x{:.0}x{:.0}mm",
+                        (b[0] - a[0]) * 1e3,
+                        (b[1] - a[1]) * 1e3,
+                        (b[2] - a[2]) * 1e3
+                    )
+                })
+                .collect();
+            self.last = format!(
+                "visible {} detected {} [{}] refused@tau {} kept@0 {} refused@0 {} best q {:.3}",
+                labels.len(),
+                p.objects.len(),
+                sizes.join(" "),
+                p.refused_for_collision,
+                q.grasps.len(),
+                q.refused_for_collision,
+                best_q
+            );
+        }
+        Ok(best)
+    }
+}
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().collect();
+    let arg = |i: usize, default: &str| args.get(i).cloned().unwrap_or_else(|| default.to_owned());
+    let scenario = Scenario::parse(&arg(1, "packed")).ok_or_else(|| anyhow::anyhow!("unknown scenario"))?;
+    let setting = Setting::parse(&arg(2, "all:0.1"))?;
+    let episodes: u64 = arg(3, "16").parse()?;
+    let seed0: u64 = arg(4, "900000").parse()?;
+    let model = ModelSettings {
+        path: arg(5, "models/mvgrasp.onnx").into(),
+        ..ModelSettings::default()
+    };
+    let mut loaded = mvgrasp_server::backend::load(&model, 64)?;
+    let planner = Planner::new(PlannerConfig::default(), loaded.net.contract().clone())?;
+    let families: Vec<Family> = arg(
+        6,
+        "box,cylinder,ellipsoid,superquadric,bottle,mug,l_shape,t_shape",
+    )
+    .split(',')
+    .map(|f| Family::parse(f).ok_or_else(|| anyhow::anyhow!("unknown family {f}")))
+    .collect::<anyhow::Result<_>>()?;
+    let config = EpisodeConfig {
+        catalog: Catalog::of(&families),
+        ..EpisodeConfig::default()
+    };
+    for seed in seed0..seed0 + episodes {
+        let mut source = Diagnosing {
+            inner: InProcess {
+                planner: &planner,
+                net: loaded.net.as_mut(),
+            },
+            last: String::new(),
+            left: Vec::new(),
+        };
+        let e = run_episode(scenario, seed, &setting, &mut source, &config)?;
+        // Each attempt: its outcome, and how steep its approach was (degrees
+        // below the horizontal: 90 is straight down).
+        let fails: Vec<String> = e
+            .attempts
+            .iter()
+            .map(|a| {
+                let approach = a.world_from_grasp.rotation * nalgebra::Vector3::z();
+                format!(
+                    "{} {:.0}deg q{:.2}",
+                    a.failure.map_or("ok", |f| f.name()),
+                    (-approach.z).clamp(-1.0, 1.0).asin().to_degrees(),
+                    a.quality
+                )
+            })
+            .collect();
+        let (scene, _) = mvgrasp_sim::eval::episode_scene(scenario, seed, &config.catalog)?;
+        let names: Vec<String> = source
+            .left
+            .iter()
+            .filter_map(|c| {
+                scene
+                    .objects
+                    .iter()
+                    .min_by(|a, b| {
+                        let d = |o: &mvgrasp_sim::scene::PlacedObject| {
+                            let t = o.world_from_object.translation;
+                            (f64::from(t.x) - c[0]).powi(2) + (f64::from(t.y) - c[1]).powi(2)
+                        };
+                        d(a).total_cmp(&d(b))
+                    })
+                    .map(|o| o.model.name.clone())
+            })
+            .collect();
+        println!(
+            "{seed} [{}] objects {} removed {} end {} | {} | {}",
+            names.join(","),
+            e.objects,
+            e.removed,
+            e.end.name(),
+            if e.end == End::NoGraspAboveTau {
+                source.last.as_str()
+            } else {
+                ""
+            },
+            fails.join(",")
+        );
+    }
+    Ok(())
+}
