@@ -232,6 +232,10 @@ fn split_one(
         }
         s.marked.push(valley);
     }
+    // No valley, no cut (a convex object: most clusters).
+    if !s.marked.contains(&true) {
+        return vec![cluster.to_vec()];
+    }
 
     // 3. Regions of unmarked pixels; 4. grown back over the marked ones.
     let points = image.points;
