@@ -27,7 +27,7 @@ from onnx import numpy_helper
 from torch import nn
 
 from .export import TOLERANCE
-from .model import ARCHITECTURES, GraspNet
+from .model import ARCHITECTURES, GraspNet, subpixel_taps
 
 
 def convolutions(path):
@@ -61,13 +61,8 @@ def from_onnx(path, architecture):
                 sub = torch.from_numpy(w).reshape(cout, s, s, cin, 3, 3)
                 weight = torch.zeros(cin, cout, k, k)
                 # The inverse of model.subpixel's tap mapping.
-                for ry in range(s):
-                    for rx in range(s):
-                        for ty in range(3):
-                            for tx in range(3):
-                                ky, kx = s * (2 - ty) + ry, s * (2 - tx) + rx
-                                if ky < k and kx < k:
-                                    weight[:, :, ky, kx] = sub[:, ry, rx, :, ty, tx].t()
+                for (ry, rx, ty, tx), (ky, kx) in subpixel_taps(k, s):
+                    weight[:, :, ky, kx] = sub[:, ry, rx, :, ty, tx].t()
                 bias = torch.from_numpy(b).reshape(cout, s * s)[:, 0]
             else:
                 if w.shape != tuple(conv.weight.shape):

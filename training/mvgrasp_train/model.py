@@ -66,6 +66,15 @@ def fold_batchnorm(model):
     return folded.eval()
 
 
+def subpixel_taps(k, s):
+    """Where each tap of a k x k transposed convolution of stride s goes in
+    its sub-pixel form: ((phase ry, phase rx, tap ty, tap tx), (ky, kx))
+    for every kernel tap (ky, kx), each exactly once (see `subpixel`)."""
+    return [((ry, rx, ty, tx), (s * (2 - ty) + ry, s * (2 - tx) + rx))
+            for ry in range(s) for rx in range(s) for ty in range(3) for tx in range(3)
+            if s * (2 - ty) + ry < k and s * (2 - tx) + rx < k]
+
+
 def subpixel(folded):
     """An equivalent copy of a BN-folded network with every transposed
     convolution as a 3x3 convolution to s*s times the channels followed by
@@ -88,13 +97,8 @@ def subpixel(folded):
             cin, cout = conv.in_channels, conv.out_channels
             w = conv.weight.data  # [cin, cout, k, k]
             new_w = torch.zeros(cout, s, s, cin, 3, 3)
-            for ry in range(s):
-                for rx in range(s):
-                    for ty in range(3):
-                        for tx in range(3):
-                            ky, kx = s * (2 - ty) + ry, s * (2 - tx) + rx
-                            if ky < k and kx < k:
-                                new_w[:, ry, rx, :, ty, tx] = w[:, :, ky, kx].t()
+            for (ry, rx, ty, tx), (ky, kx) in subpixel_taps(k, s):
+                new_w[:, ry, rx, :, ty, tx] = w[:, :, ky, kx].t()
             new = nn.Conv2d(cin, cout * s * s, 3, 1, 1, bias=True)
             new.weight.data = new_w.reshape(cout * s * s, cin, 3, 3)
             new.bias.data = conv.bias.data.repeat_interleave(s * s)
