@@ -12,7 +12,7 @@
 //! Defaults: packed, all:0.1, 16 episodes from seed 900000 (the results/
 //! scenes), models/mvgrasp.onnx, the 8 seen families. Each attempt is
 //! listed with its outcome, its approach's angle below the horizontal and
-//! its quality. Needs ORT_DYLIB_PATH.
+//! its quality; in isolated scenes, where the first grasp sat on the object. Needs ORT_DYLIB_PATH.
 use mvgrasp_core::{PlanOptions, Planner, PlannerConfig, Workspace};
 use mvgrasp_server::settings::ModelSettings;
 use mvgrasp_sim::camera::Frame;
@@ -146,6 +146,31 @@ fn main() -> anyhow::Result<()> {
             })
             .collect();
         let (scene, _) = mvgrasp_sim::eval::episode_scene(scenario, seed, &config.catalog)?;
+        // Isolated scenes: where the first grasp sat on the object, in the
+        // object's frame (origin and z axis as the family builds it: a
+        // cylinder's base centre and axis), and its closing direction.
+        if let (Scenario::Isolated, Some(a), Some(o)) = (scenario, e.attempts.first(), scene.objects.first())
+        {
+            let t = o.world_from_object.translation;
+            let q = o.world_from_object.rotation;
+            let axis = q * parry3d::math::Vector::Z;
+            let g = a.world_from_grasp.translation.vector;
+            let close = a.world_from_grasp.rotation * nalgebra::Vector3::x();
+            let off =
+                nalgebra::Vector3::new(g.x - f64::from(t.x), g.y - f64::from(t.y), g.z - f64::from(t.z));
+            let ax = nalgebra::Vector3::new(f64::from(axis.x), f64::from(axis.y), f64::from(axis.z));
+            let aabb = o.model.aabb;
+            println!(
+                "   first attempt: {:.0} mm along the object's z axis from its origin, {:.0} mm off it; closing {:.0} deg from that axis; axis . up {:.2}; object extents {:.0?} mm; opening {:.0} mm; {}",
+                off.dot(&ax) * 1e3,
+                (off - ax * off.dot(&ax)).norm() * 1e3,
+                close.dot(&ax).abs().acos().to_degrees(),
+                ax.z,
+                ((aabb.maxs - aabb.mins) * 1000.0).to_array(),
+                a.width_m * 1e3,
+                a.failure.map_or("ok", |f| f.name())
+            );
+        }
         let names: Vec<String> = source
             .left
             .iter()
