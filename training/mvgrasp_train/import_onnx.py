@@ -21,12 +21,11 @@ import sys
 
 import numpy as np
 import onnx
-import onnxruntime
 import torch
 from onnx import numpy_helper
 from torch import nn
 
-from .export import TOLERANCE
+from .export import TOLERANCE, compare
 from .model import ARCHITECTURES, GraspNet, subpixel_taps
 
 
@@ -79,15 +78,6 @@ def from_onnx(path, architecture):
     return model
 
 
-def largest_difference(model, path, views):
-    """Largest |PyTorch - onnxruntime| over `views`."""
-    with torch.no_grad():
-        mine = model.eval()(torch.from_numpy(views)).numpy()
-    session = onnxruntime.InferenceSession(path, providers=["CPUExecutionProvider"])
-    theirs = session.run(["maps"], {"views": views})[0]
-    return float(np.abs(mine - theirs).max())
-
-
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--onnx", required=True)
@@ -105,7 +95,7 @@ def main(argv=None):
             cy, cx, r = rng.uniform(0.2 * size, 0.8 * size, 2).tolist() + [rng.uniform(4, size / 4)]
             v[0] += (((yy - cy) ** 2 + (xx - cx) ** 2) < r * r) * rng.uniform(0.1, 0.6)
         v[0] += rng.normal(0, 0.01, (size, size))
-    worst = largest_difference(model, args.onnx, views)
+    worst, _ = compare(model, args.onnx, views)
     print(json.dumps({"onnx": args.onnx, "architecture": args.architecture, "max_abs_diff": worst}))
     if worst > TOLERANCE:
         sys.exit(f"the imported network differs from the file by {worst} > {TOLERANCE}")

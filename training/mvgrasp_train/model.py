@@ -42,6 +42,18 @@ class GraspNet(nn.Module):
         return torch.cat([torch.sigmoid(x[:, :1]), x[:, 1:]], dim=1)
 
 
+def train_mode(model, freeze_batchnorm=False):
+    """Puts `model` in training mode; with `freeze_batchnorm`, its BatchNorm
+    layers stay in inference mode (running statistics fixed, scale and
+    shift still learned), as for a network read back by import_onnx.py."""
+    model.train()
+    if freeze_batchnorm:
+        for m in model.modules():
+            if isinstance(m, nn.BatchNorm2d):
+                m.eval()
+    return model
+
+
 def fold_batchnorm(model):
     """An equivalent inference-only copy with each BatchNorm folded into its convolution."""
     model = model.eval()

@@ -30,7 +30,7 @@ import numpy as np
 import torch
 
 from . import augment, augment_torch, dataset, metric
-from .model import ARCHITECTURES, GraspNet
+from .model import ARCHITECTURES, GraspNet, train_mode
 
 
 def progress(done, total, started, extra=""):
@@ -154,15 +154,8 @@ def main(argv=None):
             share = max(share, (time.time() - started) / (args.minutes * 60))
         return min(share, 1.0)
 
-    def train_mode():
-        model.train()
-        if args.freeze_batchnorm:
-            for m in model.modules():
-                if isinstance(m, torch.nn.BatchNorm2d):
-                    m.eval()
-
     for epoch in range(1, args.epochs + 1):
-        train_mode()
+        train_mode(model, args.freeze_batchnorm)
         order = rng.permutation(len(train_idx) if on_device else train_idx)
         losses, t0 = [], time.time()
         for step in range(steps):

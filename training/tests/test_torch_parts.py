@@ -158,6 +158,7 @@ class Network(unittest.TestCase):
         import torch
         from torch import nn
         from mvgrasp_train import export, import_onnx
+        from mvgrasp_train.model import train_mode
         for arch in ("paper", "narrow"):
             model = self.trained_a_little(arch, 48)
             contract = {"input_size_px": 48, "pixel_size_m": 0.0025, "width_scale_m": 0.2,
@@ -167,15 +168,14 @@ class Network(unittest.TestCase):
                 export.export(model, 48, path, export.contract_metadata(contract, "t-1", "sim-test"))
                 back = import_onnx.from_onnx(path, arch)
                 views = np.random.default_rng(3).random((3, 1, 48, 48), dtype=np.float32)
-                self.assertLess(import_onnx.largest_difference(back, path, views), export.TOLERANCE, arch)
+                self.assertLess(export.compare(back, path, views)[0], export.TOLERANCE, arch)
                 with torch.no_grad():
                     diff = (back(torch.from_numpy(views)) - model(torch.from_numpy(views))).abs().max().item()
                 self.assertLess(diff, 1e-4, arch)
-            # Its BatchNorm layers are identities: in inference mode a step
-            # of training must not touch their statistics.
-            for m in back.modules():
-                if isinstance(m, nn.BatchNorm2d):
-                    m.eval()
+            # Its BatchNorm layers are identities: trained with them frozen
+            # (as train.py does for it), a step must not touch their statistics.
+            train_mode(back, freeze_batchnorm=True)
+            self.assertTrue(back.training)
             before = [m.running_mean.clone() for m in back.modules() if isinstance(m, nn.BatchNorm2d)]
             back(torch.rand(2, 1, 48, 48)).square().mean().backward()
             after = [m.running_mean for m in back.modules() if isinstance(m, nn.BatchNorm2d)]
