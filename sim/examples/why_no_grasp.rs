@@ -27,14 +27,14 @@ struct Diagnosing<'a> {
 }
 
 impl GraspSource for Diagnosing<'_> {
-    fn best_grasp(
+    fn grasps(
         &mut self,
         frame: &Frame,
         workspace: Workspace,
         options: &PlanOptions,
-    ) -> mvgrasp_sim::Result<Option<PlannedGrasp>> {
-        let best = self.inner.best_grasp(frame, workspace, options)?;
-        if best.is_none() {
+    ) -> mvgrasp_sim::Result<Vec<PlannedGrasp>> {
+        let ranked = self.inner.grasps(frame, workspace, options)?;
+        if ranked.is_empty() {
             let bytes = frame.depth_le_bytes();
             let input = frame.scene_input(&bytes, workspace);
             let at_tau = PlanOptions {
@@ -92,7 +92,7 @@ impl GraspSource for Diagnosing<'_> {
                 best_q
             );
         }
-        Ok(best)
+        Ok(ranked)
     }
 }
 

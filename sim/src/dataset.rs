@@ -255,6 +255,7 @@ fn write_manifest(
         "gripper": {
             "max_width_m": gripper.max_width_m, "pad_width_m": gripper.pad_width_m,
             "pad_depth_m": gripper.pad_depth_m, "friction": gripper.friction,
+            "max_torque_nm": gripper.max_torque_nm,
         },
         "generator": {
             "scenes": config.scenes, "first_seed": config.seed,

@@ -25,7 +25,12 @@
 //! everything settles ([`crate::pile::settle`]: what leaned on the taken
 //! object falls), and objects that left the table are gone (counted as
 //! `fell_off`, not removed). An attempt stopped by the approach check
-//! leaves the scene as it was (a real arm's planner would not move there).
+//! leaves the scene as it was (a real arm's planner would not move there),
+//! and so does one that matched no object; until the scene next moves, the
+//! executor then takes the best of the planner's ranked grasps that is not
+//! one it already tried ([`same_grasp`]), as a robot would, rather than
+//! failing the same grasp three times over. (Before 2026-11-24 it took the
+//! best grasp every time.)
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -50,6 +55,26 @@ pub const MAX_CONSECUTIVE_FAILURES: usize = 3;
 
 /// Opening beyond the planned width while the hand approaches (m).
 const APPROACH_MARGIN_M: f64 = 0.02;
+
+/// Grasps asked of the planner per frame, best first: after an approach
+/// check refuses the best, the executor takes the next (see
+/// [`same_grasp`]).
+pub const RANKED_GRASPS: usize = 8;
+
+/// Two grasps count as the same within this distance (m) and turn (deg);
+/// turned half round about the approach a parallel-jaw grasp is the same.
+const SAME_GRASP_M: f64 = 0.01;
+/// See [`SAME_GRASP_M`].
+const SAME_GRASP_DEG: f64 = 15.0;
+
+/// Whether `a` and `b` are the same grasp (within [`SAME_GRASP_M`] and
+/// [`SAME_GRASP_DEG`], the jaws' half-turn symmetry included).
+pub fn same_grasp(a: &Isometry3<f64>, b: &Isometry3<f64>) -> bool {
+    let flip = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
+    let turn = |b: &nalgebra::UnitQuaternion<f64>| a.rotation.angle_to(b).to_degrees();
+    (a.translation.vector - b.translation.vector).norm() < SAME_GRASP_M
+        && turn(&b.rotation).min(turn(&(b.rotation * flip))) < SAME_GRASP_DEG
+}
 
 /// Approach distances checked for collisions (m back from the grasp).
 const APPROACH_CHECKS_M: [f64; 5] = [0.0, 0.025, 0.05, 0.075, 0.10];
@@ -187,7 +212,8 @@ pub enum End {
     Cleared,
     /// Three failed attempts in a row.
     ConsecutiveFailures,
-    /// No grasp reached tau (or no object was found).
+    /// No grasp reached tau (or no object was found), or every one that did
+    /// was already refused in the unchanged scene.
     NoGraspAboveTau,
     /// `2 n + 3` attempts spent.
     AttemptLimit,
@@ -325,7 +351,7 @@ pub fn episode_scene(scenario: Scenario, seed: u64, catalog: &Catalog) -> Result
     Ok((scene, camera))
 }
 
-/// The best grasp of a plan, with where its object was seen.
+/// A grasp of a plan, with where its object was seen.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlannedGrasp {
     /// The grasp pose in the world.
@@ -340,14 +366,14 @@ pub struct PlannedGrasp {
 
 /// Whatever plans: the pipeline in this process, or a running server.
 pub trait GraspSource {
-    /// The best grasp for `frame` under `options`, or `None` when none
-    /// reaches `options.min_quality`.
-    fn best_grasp(
+    /// The grasps for `frame` under `options`, best first, at most
+    /// `options.max_grasps`; empty when none reaches `options.min_quality`.
+    fn grasps(
         &mut self,
         frame: &Frame,
         workspace: Workspace,
         options: &PlanOptions,
-    ) -> Result<Option<PlannedGrasp>>;
+    ) -> Result<Vec<PlannedGrasp>>;
 }
 
 /// The planner and a network in this process.
@@ -359,27 +385,31 @@ pub struct InProcess<'a> {
 }
 
 impl GraspSource for InProcess<'_> {
-    fn best_grasp(
+    fn grasps(
         &mut self,
         frame: &Frame,
         workspace: Workspace,
         options: &PlanOptions,
-    ) -> Result<Option<PlannedGrasp>> {
+    ) -> Result<Vec<PlannedGrasp>> {
         let bytes = frame.depth_le_bytes();
         let input = frame.scene_input(&bytes, workspace);
         let plan = self
             .planner
             .plan(&input, options, self.net)
             .map_err(|e| Error::Scene(format!("planner: {e}")))?;
-        Ok(plan.grasps.first().and_then(|g| {
-            let object = plan.objects.iter().find(|o| o.id == g.object_id)?;
-            Some(PlannedGrasp {
-                world_from_grasp: g.world_from_grasp,
-                width_m: g.width_m,
-                quality: g.quality,
-                object_centroid: Point3::from(object.frame.world_from_object.translation.vector),
+        Ok(plan
+            .grasps
+            .iter()
+            .filter_map(|g| {
+                let object = plan.objects.iter().find(|o| o.id == g.object_id)?;
+                Some(PlannedGrasp {
+                    world_from_grasp: g.world_from_grasp,
+                    width_m: g.width_m,
+                    quality: g.quality,
+                    object_centroid: Point3::from(object.frame.world_from_object.translation.vector),
+                })
             })
-        }))
+            .collect())
     }
 }
 
@@ -414,12 +444,12 @@ impl Remote {
 }
 
 impl GraspSource for Remote {
-    fn best_grasp(
+    fn grasps(
         &mut self,
         frame: &Frame,
         workspace: Workspace,
         options: &PlanOptions,
-    ) -> Result<Option<PlannedGrasp>> {
+    ) -> Result<Vec<PlannedGrasp>> {
         let c = &frame.camera;
         let k = c.intrinsics;
         let mut request = depth_request(
@@ -440,7 +470,7 @@ impl GraspSource for Remote {
             finger_width_m: options.gripper.finger_width_m,
             finger_depth_m: options.gripper.finger_depth_m,
         });
-        request.max_grasps = 1;
+        request.max_grasps = u32::try_from(options.max_grasps).unwrap_or(u32::MAX);
         request.min_quality = Some(options.min_quality);
         request.view_policy = match options.view_policy {
             ViewPolicy::Entropy => pb::ViewPolicy::Entropy,
@@ -455,19 +485,23 @@ impl GraspSource for Remote {
             .runtime
             .block_on(self.client.plan(request))
             .map_err(|e| Error::Scene(format!("server: {e}")))?;
-        Ok(response.grasps.first().and_then(|g| {
-            let object = response.objects.iter().find(|o| o.id == g.object_id)?;
-            Some(PlannedGrasp {
-                world_from_grasp: pose_from_message(g.pose.as_ref()),
-                width_m: g.width_m,
-                quality: g.quality,
-                object_centroid: Point3::from(
-                    pose_from_message(object.world_from_object.as_ref())
-                        .translation
-                        .vector,
-                ),
+        Ok(response
+            .grasps
+            .iter()
+            .filter_map(|g| {
+                let object = response.objects.iter().find(|o| o.id == g.object_id)?;
+                Some(PlannedGrasp {
+                    world_from_grasp: pose_from_message(g.pose.as_ref()),
+                    width_m: g.width_m,
+                    quality: g.quality,
+                    object_centroid: Point3::from(
+                        pose_from_message(object.world_from_object.as_ref())
+                            .translation
+                            .vector,
+                    ),
+                })
             })
-        }))
+            .collect())
     }
 }
 
@@ -475,7 +509,7 @@ impl GraspSource for Remote {
 pub fn plan_options(setting: &Setting, seed: u64, gripper: &GripperModel) -> PlanOptions {
     PlanOptions {
         gripper: gripper.planner_gripper(),
-        max_grasps: 1,
+        max_grasps: RANKED_GRASPS,
         min_quality: setting.tau,
         view_policy: match setting.policy {
             ViewPolicy::Random { .. } => ViewPolicy::Random { seed },
@@ -507,6 +541,9 @@ pub fn run_episode(
         last_plan_ms: None,
     };
     let limit = 2 * episode.objects + 3;
+    // Grasps the approach check refused since the scene last moved: the
+    // executor takes the best grasp that is none of them.
+    let mut refused: Vec<Isometry3<f64>> = Vec::new();
     loop {
         if scene.objects.is_empty() {
             episode.end = End::Cleared;
@@ -532,15 +569,21 @@ pub fn run_episode(
             config.noise.as_ref().map(|n| (n, &mut noise_rng)),
         );
         let started = Instant::now();
-        let best = source.best_grasp(&frame, scene.workspace(), &options)?;
+        let grasps = source.grasps(&frame, scene.workspace(), &options)?;
         let plan_ms = started.elapsed().as_secs_f64() * 1e3;
+        let best = grasps
+            .into_iter()
+            .find(|g| !refused.iter().any(|r| same_grasp(r, &g.world_from_grasp)));
         let Some(grasp) = best else {
             episode.end = End::NoGraspAboveTau;
             episode.last_plan_ms = Some(plan_ms);
             break;
         };
         let (failure, collision) = match scene.object_at(&grasp.object_centroid, 0.01) {
-            None => (Some(Failure::ObjectMissed), None),
+            None => {
+                refused.push(grasp.world_from_grasp);
+                (Some(Failure::ObjectMissed), None)
+            }
             Some(target) => {
                 let (tried, poses) = try_grasp(&scene, target, &grasp, config);
                 let (failure, collision) = match tried {
@@ -561,6 +604,9 @@ pub fn run_episode(
                         episode.removed += 1;
                     }
                     episode.fell_off += settle(&mut scene, &SettleConfig::default());
+                    refused.clear();
+                } else {
+                    refused.push(grasp.world_from_grasp);
                 }
                 (failure, collision)
             }

@@ -92,6 +92,9 @@ pub struct ObjectModel {
     pub aabb: Aabb,
     /// Mass (kg), from the parts' volume at a household density.
     pub mass_kg: f32,
+    /// Centre of mass in the object's frame (uniform density, as the
+    /// physics has it).
+    pub local_com: Vector,
 }
 
 impl std::fmt::Debug for ObjectModel {
@@ -169,6 +172,7 @@ impl ObjectModel {
         let shape = SharedShape::compound(parts.clone());
         let aabb = shape.compute_local_aabb();
         let volume: f32 = parts.iter().map(|(_, s)| s.mass_properties(1.0).mass()).sum();
+        let local_com = shape.mass_properties(1.0).local_com;
         Self {
             family,
             name: family.name().to_owned(),
@@ -176,6 +180,7 @@ impl ObjectModel {
             shape,
             aabb,
             mass_kg: (volume * DENSITY).max(0.02),
+            local_com,
         }
     }
 

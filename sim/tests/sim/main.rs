@@ -233,14 +233,64 @@ mod grasp_labels {
         };
         assert!((contact_width_m - 0.04).abs() < 1e-3, "{contact_width_m}");
         assert!((score - 1.0).abs() < 1e-6, "{score}");
-        // Only 2 cm in: 3 of the pad's 5 rows touch, so it scores less.
+        // Only 2 cm in: 3 of the pad's 5 rows touch, so it scores less
+        // (coverage weighs 0.4: 0.4 * 0.6 + 0.4 + 0.2).
         let shallow = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, 0.08, V3::y()), 0.04, &g);
         assert!(
-            matches!(shallow, GraspLabel::Positive { score, .. } if (score - 0.8).abs() < 1e-6),
+            matches!(shallow, GraspLabel::Positive { score, .. } if (score - 0.84).abs() < 1e-6),
             "{shallow:?}"
         );
         // Across the 6 cm side holds too.
         assert!(label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, 0.08, V3::x()), 0.06, &g).is_positive());
+    }
+
+    #[test]
+    fn the_weight_off_the_closing_line_twists_it() {
+        // A 30 x 4 x 8 cm bar lying along x (0.38 kg): gripped across its
+        // 4 cm side, the torque grows with the distance from its middle.
+        let scene = box_scene([0.30, 0.04, 0.08]);
+        let g = GripperModel::robotiq_2f_140();
+        let weight = scene.objects[0].model.mass_kg * 9.81;
+        let at = |x: f64| label_grasp(&scene, 0, &top_down_grasp(x, 0.0, 0.04, V3::y()), 0.04, &g);
+        let score = |label: GraspLabel| match label {
+            GraspLabel::Positive { score, .. } => score,
+            other => panic!("{other:?}"),
+        };
+        let (middle, near) = (score(at(0.0)), score(at(0.03)));
+        assert!((middle - 1.0).abs() < 1e-6 && near < middle, "{middle} {near}");
+        // 0.15 N m is reached 0.15 / weight from the middle.
+        let limit = f64::from(g.max_torque_nm / weight);
+        assert!(score(at(limit - 0.005)) > 0.8);
+        let twisted = at(limit + 0.005);
+        assert!(
+            matches!(twisted, GraspLabel::Twists { torque_nm } if torque_nm > g.max_torque_nm),
+            "{twisted:?}"
+        );
+    }
+
+    #[test]
+    fn faces_turned_past_the_cone_are_not_antipodal() {
+        // The 4 cm side turned 15 degrees off the closing direction is
+        // within the 20 degree cone; 25 degrees is not (it was under the
+        // 26.6 degree cone of sim-4, and held in 0.47 of physics trials).
+        let scene = box_scene([0.06, 0.04, 0.10]);
+        let g = GripperModel::robotiq_2f_140();
+        let turned = |deg: f64| {
+            let a = deg.to_radians();
+            label_grasp(
+                &scene,
+                0,
+                &top_down_grasp(0.0, 0.0, 0.06, V3::new(-a.sin(), a.cos(), 0.0)),
+                0.06,
+                &g,
+            )
+        };
+        assert!(turned(15.0).is_positive(), "{:?}", turned(15.0));
+        let label = turned(25.0);
+        assert!(
+            matches!(label, GraspLabel::NotAntipodal { worst_angle_deg } if (worst_angle_deg - 25.0).abs() < 1.0),
+            "{label:?}"
+        );
     }
 
     #[test]
@@ -561,12 +611,14 @@ mod physics {
 
 mod eval {
     use mvgrasp_core::{CreaseConfig, GraspNet, MomentsNet, Planner, PlannerConfig, ViewPolicy};
+    use mvgrasp_sim::camera::Frame;
     use mvgrasp_sim::eval::{
-        Attempt, CollisionSite, End, Episode, EpisodeConfig, Failure, InProcess, Setting, Summary,
-        collision_list, crease_setting, markdown_table, run_episode,
+        Attempt, CollisionSite, End, Episode, EpisodeConfig, Failure, GraspSource, InProcess, PlannedGrasp,
+        Setting, Summary, collision_list, crease_setting, markdown_table, run_episode, same_grasp,
     };
     use mvgrasp_sim::grasp::{HandPart, Obstacle};
     use mvgrasp_sim::scene::Scenario;
+    use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
     #[test]
     fn settings_parse_and_bad_ones_say_why() {
@@ -656,11 +708,79 @@ mod eval {
         assert!(attempts > 0, "the baseline tried no grasp at all");
     }
 
+    /// Plans the same ranked list for every frame.
+    struct Scripted(Vec<PlannedGrasp>);
+
+    impl GraspSource for Scripted {
+        fn grasps(
+            &mut self,
+            _: &Frame,
+            _: mvgrasp_core::Workspace,
+            options: &mvgrasp_core::PlanOptions,
+        ) -> mvgrasp_sim::Result<Vec<PlannedGrasp>> {
+            Ok(self.0.iter().take(options.max_grasps).cloned().collect())
+        }
+    }
+
+    #[test]
+    fn a_refused_grasp_is_not_tried_again_in_an_unchanged_scene() {
+        // Two grasps over empty table, 5 cm apart: neither matches an
+        // object, so the scene never moves.
+        let at = |x: f64| PlannedGrasp {
+            world_from_grasp: Isometry3::translation(x, -0.45, 0.1),
+            width_m: 0.05,
+            quality: 0.9,
+            object_centroid: Point3::new(x, -0.45, 0.1),
+        };
+        let mut source = Scripted(vec![at(0.5), at(0.55)]);
+        let setting = Setting::parse("all:0.1").unwrap();
+        let e = run_episode(
+            Scenario::Isolated,
+            900_000,
+            &setting,
+            &mut source,
+            &EpisodeConfig::default(),
+        )
+        .unwrap();
+        let tried: Vec<f64> = e
+            .attempts
+            .iter()
+            .map(|a| a.world_from_grasp.translation.x)
+            .collect();
+        assert_eq!(tried, vec![0.5, 0.55]);
+        assert!(
+            e.attempts
+                .iter()
+                .all(|a| a.failure == Some(Failure::ObjectMissed))
+        );
+        assert_eq!(e.end, End::NoGraspAboveTau);
+    }
+
+    #[test]
+    fn the_same_grasp_within_a_centimetre_and_15_degrees_either_way_round() {
+        let a = Isometry3::translation(0.1, 0.2, 0.3);
+        let turned = |deg: f64, axis: Vector3<f64>| {
+            Isometry3::from_parts(
+                a.translation,
+                UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_normalize(axis), deg.to_radians()),
+            )
+        };
+        assert!(same_grasp(&a, &a));
+        assert!(same_grasp(&a, &Isometry3::translation(0.109, 0.2, 0.3)));
+        assert!(!same_grasp(&a, &Isometry3::translation(0.111, 0.2, 0.3)));
+        assert!(same_grasp(&a, &turned(14.0, Vector3::x())));
+        assert!(!same_grasp(&a, &turned(16.0, Vector3::x())));
+        // Jaws turned half round about the approach: the same grasp.
+        assert!(same_grasp(&a, &turned(180.0, Vector3::z())));
+        assert!(same_grasp(&a, &turned(170.0, Vector3::z())));
+        assert!(!same_grasp(&a, &turned(90.0, Vector3::z())));
+    }
+
     #[test]
     fn summaries_count_rates_and_causes() {
         let attempt = |failure| Attempt {
             plan_ms: 10.0,
-            world_from_grasp: nalgebra::Isometry3::identity(),
+            world_from_grasp: Isometry3::identity(),
             width_m: 0.05,
             quality: 0.9,
             failure,
