@@ -59,8 +59,13 @@ pub struct Basket {
     pub inner_half_m: f32,
     /// Wall height (m).
     pub wall_m: f32,
-    /// Horizontal carry speed (m/s).
+    /// Carry speed (m/s).
     pub speed: f32,
+    /// Carry acceleration and deceleration (m/s^2), each leg from rest to
+    /// rest. Until 2026-11-24 the hand jumped to `speed` in one step
+    /// (120 m/s^2 at 240 Hz), which shook about half of the objects that
+    /// slipped out of the grip at the start of the carry.
+    pub accel: f32,
     /// How long the object may fall and settle after the release (s).
     pub release_s: f32,
 }
@@ -72,6 +77,7 @@ impl Default for Basket {
             inner_half_m: 0.15,
             wall_m: 0.12,
             speed: 0.5,
+            accel: 1.0,
             release_s: 1.0,
         }
     }
@@ -378,7 +384,8 @@ pub fn run_trial(
 
 /// Carries the held `object` from `lifted` (the hand's pose) to the basket:
 /// up until its bottom clears every other object and the basket's walls by
-/// 3 cm, across at the basket's speed, then opens the pads and waits.
+/// 3 cm, across, speeding up and slowing down at the basket's acceleration,
+/// then opens the pads and waits.
 /// True when the object came to rest inside the basket.
 #[allow(clippy::too_many_arguments)] // the trial's state, passed on rather than rebuilt
 fn carry_and_release(
@@ -410,15 +417,16 @@ fn carry_and_release(
         Vector::new(bx, by, carry_z),
     ];
     let mut at = lifted.translation;
-    let step_len = basket.speed * config.dt;
     for target in waypoints {
-        while (target - at).length() > 1e-6 {
-            let d = target - at;
-            at += d * (step_len / d.length()).min(1.0);
+        let start = at;
+        let leg = target - start;
+        for travelled in rest_to_rest(leg.length(), basket.speed, basket.accel, config.dt) {
+            at = start + leg * (travelled / leg.length());
             servo(world, hand);
             place(world, hand, &Pose::from_parts(at, lifted.rotation));
             world.step();
         }
+        at = target;
     }
     // Open the pads (5 cm each at the closing speed), then let it fall and settle.
     let open_steps = (0.05 / config.close_speed / config.dt) as usize;
@@ -436,6 +444,28 @@ fn carry_and_release(
     (c.x - bx).abs() < basket.inner_half_m
         && (c.y - by).abs() < basket.inner_half_m
         && c.z < start_z + basket.wall_m
+}
+
+/// Distance travelled after each step of `dt` along a straight leg of
+/// `length` (m), from rest to rest: speeding up at `accel` (m/s^2) to
+/// `speed` (m/s), cruising, and slowing down at `accel` so as to stop at the
+/// end. The last value is `length`.
+pub fn rest_to_rest(length: f32, speed: f32, accel: f32, dt: f32) -> impl Iterator<Item = f32> {
+    let (mut travelled, mut v) = (0.0f32, 0.0f32);
+    std::iter::from_fn(move || {
+        let left = length - travelled;
+        if left <= 1e-6 {
+            return None;
+        }
+        // The fastest speed from which steps slowing by `accel * dt` each
+        // stop within `left`: left = v^2 / (2 accel) + v dt / 2.
+        let step = accel * dt;
+        let braking = (-step + (step * step + 8.0 * accel * left).sqrt()) / 2.0;
+        v = (v + step).min(speed).min(braking);
+        // The braking bound reaches 0 only at the end: never stall short of it.
+        travelled = (travelled + (v * dt).max(1e-5)).min(length);
+        Some(travelled)
+    })
 }
 
 /// How often analytic labels and physics trials agree on a sample of grasps.

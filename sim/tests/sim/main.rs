@@ -516,11 +516,41 @@ fn datagen_writes_shards_its_manifest_counts() {
 
 mod physics {
     use mvgrasp_sim::grasp::{GraspLabel, GripperModel, label_grasp};
-    use mvgrasp_sim::physics::{Basket, TrialConfig, TrialOutcome, run_trial, trial};
+    use mvgrasp_sim::physics::{Basket, TrialConfig, TrialOutcome, rest_to_rest, run_trial, trial};
     use nalgebra::Vector3 as V3;
 
     use super::grasp_labels::{box_scene, top_down_grasp};
     use super::*;
+
+    #[test]
+    fn the_carry_speeds_up_and_slows_down_within_its_acceleration() {
+        let (speed, accel, dt) = (0.5f32, 1.0f32, 1.0 / 240.0);
+        for length in [0.0f32, 0.003, 0.1, 0.8] {
+            let path: Vec<f32> = std::iter::once(0.0)
+                .chain(rest_to_rest(length, speed, accel, dt))
+                .collect();
+            assert!(
+                (path.last().unwrap() - length).abs() < 1e-6,
+                "{length}: ends at {:?}",
+                path.last()
+            );
+            let v: Vec<f32> = std::iter::once(0.0)
+                .chain(path.windows(2).map(|w| (w[1] - w[0]) / dt))
+                .chain(std::iter::once(0.0))
+                .collect();
+            assert!(v.iter().all(|&v| v <= speed + 1e-4), "{length}: over speed");
+            // Speed changes by at most accel * dt per step, both ways (the
+            // last step rounds onto the end: 1e-5 m of slack).
+            let worst = v.windows(2).map(|w| (w[1] - w[0]).abs()).fold(0.0f32, f32::max);
+            assert!(
+                worst <= accel * dt * 1.01 + 1e-5 / dt,
+                "{length}: {worst} m/s in one step"
+            );
+        }
+        // 0.8 m: 0.5 s up to speed (0.125 m), 0.55 m cruising, 0.5 s down: 2.1 s.
+        let steps = rest_to_rest(0.8, speed, accel, dt).count() as f32;
+        assert!((steps * dt - 2.1).abs() < 0.02, "{} s", steps * dt);
+    }
 
     #[test]
     fn a_narrow_side_grasp_lifts_and_a_grasp_over_a_ball_does_not() {
