@@ -137,7 +137,7 @@ fn padded_batches_give_the_same_maps() {
 fn golden_vectors_match_through_ort() {
     check_golden("models/mvgrasp.onnx", "models/golden");
     check_golden("models/mvgrasp-paper.onnx", "models/golden-paper");
-    check_golden("models/mvgrasp-sim4.onnx", "models/golden-sim4");
+    check_golden("models/mvgrasp-sim3.onnx", "models/golden-sim3");
 }
 
 fn check_golden(file: &str, golden: &str) {
