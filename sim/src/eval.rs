@@ -63,9 +63,9 @@ pub const RANKED_GRASPS: usize = 8;
 
 /// Two grasps count as the same within this distance (m) and turn (deg);
 /// turned half round about the approach a parallel-jaw grasp is the same.
-const SAME_GRASP_M: f64 = 0.01;
+pub const SAME_GRASP_M: f64 = 0.01;
 /// See [`SAME_GRASP_M`].
-const SAME_GRASP_DEG: f64 = 15.0;
+pub const SAME_GRASP_DEG: f64 = 15.0;
 
 /// Whether `a` and `b` are the same grasp (within [`SAME_GRASP_M`] and
 /// [`SAME_GRASP_DEG`], the jaws' half-turn symmetry included).
