@@ -8,7 +8,10 @@
 //! 10), contact recycling is off, 240 Hz steps with 4 solver iterations.
 //! Objects are their convex compounds at the model's mass; the table is
 //! fixed. The servo's force comes from penetration, not from a motor: this
-//! judges geometry and friction, not force limits.
+//! judges geometry and friction, not force limits. Every hand motion
+//! starts and ends at rest and speeds up and slows down at a robot's pace
+//! (1 m/s^2): a kinematic hand that jumps to speed in one 1/240 s step
+//! shakes objects loose that a real arm would carry (2026-11-24).
 
 use nalgebra::Isometry3;
 use rapier3d::prelude::{
@@ -38,7 +41,13 @@ pub struct TrialConfig {
     pub lift_m: f32,
     /// See `lift_m`.
     pub lift_speed: f32,
-    /// Shake amplitude (m) and frequency (Hz), across the closing direction, for `shake_s`.
+    /// The lift speeds up and slows down at this (m/s^2). Until 2026-11-24
+    /// it started at `lift_speed` in one step (24 m/s^2 at 240 Hz).
+    pub lift_accel: f32,
+    /// Shake amplitude (m) and frequency (Hz), across the closing direction,
+    /// for `shake_s`: `shake_m (1 - cos)`, from rest and back, 2 x `shake_m`
+    /// peak to peak (until 2026-11-24 `shake_m sin`, which started at full
+    /// speed in one step).
     pub shake_m: f32,
     /// See `shake_m`.
     pub shake_hz: f32,
@@ -94,6 +103,7 @@ impl Default for TrialConfig {
             servo_speed: 0.005,
             lift_m: 0.15,
             lift_speed: 0.1,
+            lift_accel: 1.0,
             shake_m: 0.01,
             shake_hz: 2.0,
             shake_s: 0.5,
@@ -334,13 +344,16 @@ pub fn run_trial(
         };
     }
     // Lift, then shake, servoing the grip all along.
-    let lift_steps = (config.lift_m / config.lift_speed / config.dt) as usize;
+    let lift_path: Vec<f32> =
+        rest_to_rest(config.lift_m, config.lift_speed, config.lift_accel, config.dt).collect();
+    let lift_steps = lift_path.len();
     let shake_steps = (config.shake_s / config.dt) as usize;
     let across = grasp.rotation * Vector::Y;
     for step in 0..lift_steps + shake_steps {
-        let rise = (step.min(lift_steps) as f32 + 1.0) * config.lift_speed * config.dt;
+        let rise = lift_path[step.min(lift_steps - 1)];
         let t = step.saturating_sub(lift_steps) as f32 * config.dt;
-        let sway = config.shake_m * (std::f32::consts::TAU * config.shake_hz * t).sin();
+        // 1 - cos: from rest and back to rest, 2 x shake_m peak to peak.
+        let sway = config.shake_m * (1.0 - (std::f32::consts::TAU * config.shake_hz * t).cos());
         let moved = Pose::from_translation(Vector::new(0.0, 0.0, rise) + across * sway) * grasp;
         servo(&world, &mut hand, false);
         place(&mut world, &hand, &moved);
