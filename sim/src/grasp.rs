@@ -24,13 +24,13 @@
 //! The cone and the torque limit are calibrated against the physics trial
 //! that `sim eval` runs (`examples/torque_slip.rs`, 642 top-down grasps on
 //! isolated objects, seeds 700000+): of analytic positives whose worst
-//! contact angle was within 5 / 10 / 15 / 20 / 26.6 degrees, 0.95 / 0.90 /
-//! 0.84 / 0.69 / 0.56 held (torque under 0.03 N m); at 20 degrees or more
-//! and a torque of 0.15 N m or more, 1 of 16. Labelled with a 26.6 degree
-//! cone (mu 0.5) and no torque term (data sim-4), 0.73 of the positives
-//! held; with 20 degrees and 0.15 N m (sim-5), 0.82, keeping 0.74 of the
-//! grasps that held. On fresh scenes (seeds 710000+, 647 grasps): 0.76
-//! against 0.85, keeping 0.80.
+//! contact angle was within 5 / 10 / 15 / 20 / 26.6 degrees, 0.98 / 0.92 /
+//! 0.88 / 0.76 / 0.63 held (torque under 0.03 N m); at 20 degrees or more
+//! and a torque of 0.15 N m or more, 4 of 16. Labelled with a 26.6 degree
+//! cone (mu 0.5) and no torque term (data sim-4), 0.79 of the positives
+//! held; with 20 degrees and 0.15 N m (sim-5), 0.86, keeping 0.72 of the
+//! grasps that held. On fresh scenes (seeds 710000+, 647 grasps): 0.83
+//! against 0.89, keeping 0.76.
 //!
 //! The score (for positives) combines the paper's terms: the share of pad
 //! rays that meet the object (how much of the object is between the
