@@ -17,11 +17,10 @@
 //! is the check), families box, cylinder, bottle, superquadric, ellipsoid.
 use std::collections::BTreeMap;
 
-use mvgrasp_sim::grasp::{GripperModel, label_grasp, weight_torque_nm};
+use mvgrasp_sim::grasp::{GripperModel, label_grasp, top_down_over, weight_torque_nm};
 use mvgrasp_sim::objects::{Catalog, Family};
 use mvgrasp_sim::physics::{Basket, TrialConfig, run_trial};
 use mvgrasp_sim::scene::{Scenario, Scene};
-use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 /// Cones (deg) tried, narrowest first.
 const CONES_DEG: [f32; 5] = [5.0, 10.0, 15.0, 20.0, 26.6];
@@ -65,24 +64,10 @@ fn main() -> anyhow::Result<()> {
         for s in seed..seed + scenes {
             let scene = Scene::generate_from(Scenario::Isolated, s, &catalog)?;
             let o = &scene.objects[0];
-            let (lo, hi) = (o.world_aabb.mins, o.world_aabb.maxs);
-            let (cx, cy, top) = (
-                f64::from(lo.x + hi.x) / 2.0,
-                f64::from(lo.y + hi.y) / 2.0,
-                f64::from(hi.z),
-            );
             for k in 0..4 {
                 let yaw = k as f64 * std::f64::consts::PI / 4.0;
-                let closing = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
-                let approach = -Vector3::z();
-                let across = approach.cross(&closing);
-                let r = Rotation3::from_basis_unchecked(&[closing, across, approach]);
                 for offset in [0.0, 0.02, 0.04, 0.06] {
-                    let centre = Vector3::new(cx, cy, top - 0.025) + across * offset;
-                    let grasp = Isometry3::from_parts(
-                        Translation3::from(centre),
-                        UnitQuaternion::from_rotation_matrix(&r),
-                    );
+                    let grasp = top_down_over(o, yaw, 0.025, offset);
                     let width = f64::from(current.max_width_m - current.clearance_m);
                     if !label_grasp(&scene, 0, &grasp, width, &sim4).is_positive() {
                         continue;

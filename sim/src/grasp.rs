@@ -331,6 +331,33 @@ pub fn label_grasp(
     }
 }
 
+/// A top-down grasp over `object`: closing horizontally at `yaw` (rad from
+/// +x), the grasp origin (the fingertips) `depth_m` below the object's top
+/// over the centre of its box, moved `sideways_m` along the jaws' width
+/// (grasp +y). The samples that calibrate the labels against physics use it.
+pub fn top_down_over(
+    object: &crate::scene::PlacedObject,
+    yaw: f64,
+    depth_m: f64,
+    sideways_m: f64,
+) -> Isometry3<f64> {
+    use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector3};
+
+    let (lo, hi) = (object.world_aabb.mins, object.world_aabb.maxs);
+    let closing = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
+    let approach = -Vector3::z();
+    let across = approach.cross(&closing);
+    let centre = Vector3::new(
+        f64::from(lo.x + hi.x) / 2.0,
+        f64::from(lo.y + hi.y) / 2.0,
+        f64::from(hi.z) - depth_m,
+    ) + across * sideways_m;
+    Isometry3::from_parts(
+        Translation3::from(centre),
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_basis_unchecked(&[closing, across, approach])),
+    )
+}
+
 /// Standard gravity (m/s^2).
 const G: f32 = 9.81;
 

@@ -516,28 +516,13 @@ pub fn agreement(
     gripper: &GripperModel,
     config: &TrialConfig,
 ) -> crate::Result<Agreement> {
-    use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector3};
-
     let mut a = Agreement::default();
     for seed in seeds {
         let scene = Scene::generate(crate::scene::Scenario::Isolated, seed, families)?;
-        let o = &scene.objects[0];
-        let (lo, hi) = (o.world_aabb.mins, o.world_aabb.maxs);
-        let (cx, cy, top) = (
-            f64::from(lo.x + hi.x) / 2.0,
-            f64::from(lo.y + hi.y) / 2.0,
-            f64::from(hi.z),
-        );
         for k in 0..8 {
             let yaw = k as f64 * std::f64::consts::PI / 8.0;
-            let closing = Vector3::new(yaw.cos(), yaw.sin(), 0.0);
-            let approach = -Vector3::z();
-            let r = Rotation3::from_basis_unchecked(&[closing, approach.cross(&closing), approach]);
             for depth in [0.01, 0.025, 0.04] {
-                let grasp = Isometry3::from_parts(
-                    Translation3::new(cx, cy, top - depth),
-                    UnitQuaternion::from_rotation_matrix(&r),
-                );
+                let grasp = crate::grasp::top_down_over(&scene.objects[0], yaw, depth, 0.0);
                 let width = f64::from(gripper.max_width_m - gripper.clearance_m);
                 let analytic = crate::grasp::label_grasp(&scene, 0, &grasp, width, gripper);
                 // Grasps whose open hand already collides are negative both ways by construction.
