@@ -541,8 +541,9 @@ pub fn run_episode(
         last_plan_ms: None,
     };
     let limit = 2 * episode.objects + 3;
-    // Grasps the approach check refused since the scene last moved: the
-    // executor takes the best grasp that is none of them.
+    // Grasps tried since the scene last moved that left it as it was (the
+    // approach check refused them, or they matched no object): the executor
+    // takes the best grasp that is none of them.
     let mut refused: Vec<Isometry3<f64>> = Vec::new();
     loop {
         if scene.objects.is_empty() {

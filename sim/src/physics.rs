@@ -350,7 +350,11 @@ pub fn run_trial(
     let shake_steps = (config.shake_s / config.dt) as usize;
     let across = grasp.rotation * Vector::Y;
     for step in 0..lift_steps + shake_steps {
-        let rise = lift_path[step.min(lift_steps - 1)];
+        // (No lift at all: lift_m 0 gives an empty path.)
+        let rise = lift_path
+            .get(step.min(lift_steps.saturating_sub(1)))
+            .copied()
+            .unwrap_or(0.0);
         let t = step.saturating_sub(lift_steps) as f32 * config.dt;
         // 1 - cos: from rest and back to rest, 2 x shake_m peak to peak.
         let sway = config.shake_m * (1.0 - (std::f32::consts::TAU * config.shake_hz * t).cos());
