@@ -167,6 +167,7 @@ fn json_of_response(r: &pb::PlanGraspsResponse) -> serde_json::Value {
         "request_id": r.request_id,
         "model_version": r.model_version,
         "grasps": r.grasps.iter().map(json_of_grasp).collect::<Vec<_>>(),
+        "ranked_last_out_of_view": r.ranked_last_out_of_view,
         "objects": r.objects.iter().map(|o| {
             let c = o.world_from_object.unwrap_or_default().position.unwrap_or_default();
             serde_json::json!({
@@ -187,10 +188,14 @@ fn json_of_response(r: &pb::PlanGraspsResponse) -> serde_json::Value {
 
 fn print_table(r: &pb::PlanGraspsResponse) {
     println!(
-        "{} objects, {} grasps (model {})",
+        "{} objects, {} grasps (model {}){}",
         r.objects.len(),
         r.grasps.len(),
-        r.model_version
+        r.model_version,
+        match r.ranked_last_out_of_view {
+            0 => String::new(),
+            n => format!("; the last {n} reach past the image border"),
+        }
     );
     println!("rank  object  view   quality  width_mm        x        y        z   approach");
     for (rank, g) in r.grasps.iter().enumerate() {

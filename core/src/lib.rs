@@ -67,5 +67,5 @@ pub use pipeline::{
 };
 pub use segment::{ClusterConfig, CreaseConfig, TableConfig, TablePlane};
 pub use select::ViewPolicy;
-pub use sensor::{CloudFrame, DepthEncoding, DepthFrame, Intrinsics, PointCloud, SensorInput};
+pub use sensor::{CloudFrame, DepthEncoding, DepthFrame, FieldOfView, Intrinsics, PointCloud, SensorInput};
 pub use view::{OrthoView, ViewAxis};

@@ -7,8 +7,8 @@ use std::time::{Duration, Instant};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::decode::{
-    Collision, DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, ViewPlacement, decode_view,
-    fit_opening, hand_collision, rank_grasps_accepted,
+    Collision, DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, Verdict, ViewPlacement, decode_view,
+    fit_opening, hand_collision, hand_out_of_view, rank_grasps_vetted,
 };
 use crate::error::{Error, Result};
 use crate::geometry::Workspace;
@@ -20,7 +20,9 @@ use crate::segment::{
     split_at_creases,
 };
 use crate::select::{ViewPolicy, select_views};
-use crate::sensor::{BlockMask, SensorInput, random_world_points, world_points, world_points_above};
+use crate::sensor::{
+    BlockMask, FieldOfView, SensorInput, random_world_points, world_points, world_points_above,
+};
 use crate::view::{OrthoView, ViewAxis};
 
 /// One sensor frame and where it was taken from.
@@ -189,6 +191,9 @@ pub struct Plan {
     /// Grasps dropped because the hand would hit an observed point or the
     /// table ([`HandConfig`]).
     pub refused_for_collision: usize,
+    /// Grasps at the end of `grasps` because their pads reach past the
+    /// image border ([`HandConfig::out_of_view_last`]).
+    pub ranked_last_out_of_view: usize,
     /// Every object found, by id.
     pub objects: Vec<DetectedObject>,
     /// The table the objects stand on.
@@ -223,6 +228,8 @@ struct PreparedObject {
 pub struct Prepared {
     objects: Vec<PreparedObject>,
     table: TablePlane,
+    /// Where the camera looked (depth images; a cloud has no border).
+    view: Option<FieldOfView>,
     /// `(object index, view index)` of each batch entry.
     inferred: Vec<(usize, usize)>,
     batch: ViewBatch,
@@ -419,9 +426,14 @@ impl Planner {
         }
         clock.lap(&mut timings.select);
 
+        let view = match &scene.sensor {
+            SensorInput::Depth(frame) => Some(FieldOfView::of(frame, &scene.world_from_camera)),
+            SensorInput::Cloud(_) => None,
+        };
         Ok(Prepared {
             objects,
             table,
+            view,
             inferred,
             batch,
             options: options.clone(),
@@ -436,6 +448,7 @@ impl Planner {
         let Prepared {
             objects,
             table,
+            view,
             inferred,
             options,
             mut timings,
@@ -469,7 +482,7 @@ impl Planner {
                 points: &o.points,
             })
             .collect();
-        let (ranked, refused_for_collision) = rank_grasps_accepted(
+        let ranked = rank_grasps_vetted(
             grasps,
             &RankConfig {
                 min_quality: options.min_quality,
@@ -482,24 +495,42 @@ impl Planner {
                 let hit = |pose: &Isometry3<f64>, width: f64| {
                     hand_collision(pose, width, &options.gripper, hand, &table, &obstacles, own)
                 };
-                match hit(&g.world_from_grasp, g.width_m) {
-                    None => Some(g),
+                let g = match hit(&g.world_from_grasp, g.width_m) {
+                    None => g,
                     // Pads on its own object: open to what was seen of it, and check again.
                     Some(Collision::Object(i)) if hand.fit_opening && Some(i) == own => {
-                        let (pose, width) = fit_opening(
+                        let Some((pose, width)) = fit_opening(
                             &g.world_from_grasp,
                             g.width_m,
                             &options.gripper,
                             hand,
                             &obstacles[i],
-                        )?;
-                        hit(&pose, width).is_none().then_some(Grasp {
+                        ) else {
+                            return Verdict::Refuse;
+                        };
+                        if hit(&pose, width).is_some() {
+                            return Verdict::Refuse;
+                        }
+                        Grasp {
                             world_from_grasp: pose,
                             width_m: width,
                             ..g
-                        })
+                        }
                     }
-                    Some(_) => None,
+                    Some(_) => return Verdict::Refuse,
+                };
+                // Pads past the image border: maybe onto the part of the
+                // object never seen. Tried last, not refused: the object may
+                // have no other grasp.
+                let unseen = view.as_ref().is_some_and(|v| {
+                    hand.enabled
+                        && hand.out_of_view_last
+                        && hand_out_of_view(&g.world_from_grasp, g.width_m, &options.gripper, hand, v)
+                });
+                if unseen {
+                    Verdict::Defer(g)
+                } else {
+                    Verdict::Accept(g)
                 }
             },
         );
@@ -522,8 +553,9 @@ impl Planner {
         }
         timings.decode = start.elapsed();
         Ok(Plan {
-            grasps: ranked,
-            refused_for_collision,
+            grasps: ranked.grasps,
+            refused_for_collision: ranked.refused,
+            ranked_last_out_of_view: ranked.deferred,
             objects: objects.into_iter().map(|o| o.object).collect(),
             table,
             timings,

@@ -294,6 +294,7 @@ pub fn response_of(
         model_version: model_version.to_owned(),
         debug_views: plan.debug_views.iter().map(debug_message).collect(),
         request_id: request_id.to_owned(),
+        ranked_last_out_of_view: plan.ranked_last_out_of_view as u32,
     }
 }
 

@@ -37,6 +37,8 @@ pub struct Metrics {
     pub grasps_per_request: Histogram,
     /// Grasps dropped because the hand would hit an observed point or the table.
     pub grasps_refused_for_collision: IntCounter,
+    /// Grasps returned last because their pads reach past the image border.
+    pub grasps_out_of_view: IntCounter,
     /// Queued work dropped before inference, by reason.
     pub dropped: IntCounterVec,
     /// 1, labelled with the loaded model and backend.
@@ -96,6 +98,11 @@ impl Metrics {
                 "Grasps dropped because the hand would hit an observed point or the table",
             )
             .map_err(metric_error)?,
+            grasps_out_of_view: IntCounter::new(
+                "grasps_out_of_view_total",
+                "Grasps returned last because their pads reach past the image border",
+            )
+            .map_err(metric_error)?,
             dropped: IntCounterVec::new(
                 Opts::new("dropped_views_total", "Queued views dropped before inference"),
                 &["reason"],
@@ -108,7 +115,7 @@ impl Metrics {
             .map_err(metric_error)?,
             registry,
         };
-        let collectors: [Box<dyn prometheus::core::Collector>; 12] = [
+        let collectors: [Box<dyn prometheus::core::Collector>; 13] = [
             Box::new(m.requests.clone()),
             Box::new(m.request_seconds.clone()),
             Box::new(m.stage_seconds.clone()),
@@ -119,6 +126,7 @@ impl Metrics {
             Box::new(m.objects_per_request.clone()),
             Box::new(m.grasps_per_request.clone()),
             Box::new(m.grasps_refused_for_collision.clone()),
+            Box::new(m.grasps_out_of_view.clone()),
             Box::new(m.dropped.clone()),
             Box::new(m.model_info.clone()),
         ];

@@ -169,6 +169,9 @@ impl PlannerState {
         self.metrics
             .grasps_refused_for_collision
             .inc_by(plan.refused_for_collision as u64);
+        self.metrics
+            .grasps_out_of_view
+            .inc_by(plan.ranked_last_out_of_view as u64);
     }
 
     fn observe_call(&self, method: &str, started: Instant, code: Code) {

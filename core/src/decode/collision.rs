@@ -32,6 +32,13 @@
 //! checked again, neighbours and table included. The network places the
 //! grasp; the points say how far to open.
 //!
+//! What the camera never saw is not known to be free: an object cut by the
+//! image border looks narrower than it is, and a pad reaching past the
+//! border may land on the part outside. [`hand_out_of_view`] finds such
+//! grasps (depth frames, whose border is known); the pipeline ranks them
+//! after every grasp that stays in view rather than dropping them, as the
+//! object may have no other grasp (`HandConfig::out_of_view_last`).
+//!
 //! Cost: the points are each object's, in its own frame (kept from the
 //! views). Each hand box's bounding box is found in that frame; an object
 //! none of them reaches is skipped, a point outside all of them costs a few
@@ -41,6 +48,7 @@ use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::gripper::Gripper;
 use crate::segment::TablePlane;
+use crate::sensor::FieldOfView;
 
 /// The hand's shape beyond the pads' contact faces, and how strictly to check.
 #[derive(Debug, Clone, PartialEq)]
@@ -71,6 +79,10 @@ pub struct HandConfig {
     pub fit_opening: bool,
     /// Air between each pad and the object's points after a re-fit (m).
     pub fit_clearance_m: f64,
+    /// Rank a grasp whose pads, where the hand ends, reach outside the
+    /// camera's field of view after every grasp that stays inside (depth
+    /// images only: [`hand_out_of_view`]).
+    pub out_of_view_last: bool,
 }
 
 impl Default for HandConfig {
@@ -88,6 +100,7 @@ impl Default for HandConfig {
             table_margin_m: -0.002,
             fit_opening: true,
             fit_clearance_m: 0.005,
+            out_of_view_last: true,
         }
     }
 }
@@ -109,6 +122,11 @@ impl GraspBox {
             )
         })
     }
+}
+
+/// `width_m` opened `by` more, within the stroke (never narrower).
+fn widen(width_m: f64, by: f64, gripper: &Gripper) -> f64 {
+    (width_m + by).min(gripper.max_width_m).max(width_m)
 }
 
 /// The hand's boxes for an opening `width_m`, the fingertips at `tip_z`
@@ -159,6 +177,26 @@ pub enum Collision {
     Object(usize),
 }
 
+/// Whether a pad, where the hand ends (opened to `width_m` plus the
+/// opening clearance), reaches outside `view`. An object cut by the image
+/// border looks narrower than it is: the pad on the cut side would land on
+/// the part never seen. The pads' corners are checked; the field of view is
+/// convex, so the pads and the gap between them are inside when every
+/// corner is.
+pub fn hand_out_of_view(
+    world_from_grasp: &Isometry3<f64>,
+    width_m: f64,
+    gripper: &Gripper,
+    hand: &HandConfig,
+    view: &FieldOfView,
+) -> bool {
+    let open = widen(width_m, hand.opening_clearance_m, gripper);
+    hand_boxes(open, 0.0, 0.0, gripper, hand)[..2]
+        .iter()
+        .flat_map(GraspBox::corners)
+        .any(|c| !view.contains(&(world_from_grasp * Point3::from(c))))
+}
+
 /// Whether the hand, closing to `width_m` at `world_from_grasp` after its
 /// approach, would hit the observed points of `obstacles` or the table.
 /// `own` is the grasp's own object among `obstacles`: only its points may
@@ -190,9 +228,8 @@ pub fn hand_collision(
     if !hand.enabled {
         return None;
     }
-    let widen = |w: f64, by: f64| (w + by).min(gripper.max_width_m).max(w);
-    let open = widen(width_m, hand.opening_clearance_m);
-    let preshaped = widen(open, hand.preshape_margin_m);
+    let open = widen(width_m, hand.opening_clearance_m, gripper);
+    let preshaped = widen(open, hand.preshape_margin_m, gripper);
     // Where the hand ends, and the approach behind it (pre-shaped wider).
     let mut boxes = hand_boxes(open, 0.0, 0.0, gripper, hand).to_vec();
     boxes.extend(hand_boxes(preshaped, -1e-3, hand.approach_m, gripper, hand));
@@ -502,6 +539,56 @@ mod tests {
         };
         let object = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
         assert!(!collides(&grasp, 0.03, &off, &table, &object));
+    }
+
+    /// A 640 x 480 camera 1 m above the origin looking straight down.
+    fn overhead_view() -> FieldOfView {
+        FieldOfView {
+            world_from_camera: crate::geometry::camera_looking_at(
+                Vector3::new(0.0, 0.0, 1.0),
+                Vector3::zeros(),
+            ),
+            intrinsics: crate::sensor::Intrinsics {
+                fx: 600.0,
+                fy: 600.0,
+                cx: 319.5,
+                cy: 239.5,
+            },
+            width: 640,
+            height: 480,
+        }
+    }
+
+    #[test]
+    fn pads_past_the_image_border_are_out_of_view() {
+        let (hand, gripper, view) = (HandConfig::default(), Gripper::default(), overhead_view());
+        // Image columns run along world x: a point d below the camera is
+        // seen out to x = 320 / 600 d (the border is half a pixel past the
+        // last centre), rows along y out to 240 / 600 d.
+        let seen_x = |height: f64| 320.0 / 600.0 * (1.0 - height);
+        assert!(view.contains(&Point3::new(seen_x(0.05) - 1e-3, 0.0, 0.05)));
+        assert!(!view.contains(&Point3::new(seen_x(0.05) + 1e-3, 0.0, 0.05)));
+        assert!(!view.contains(&Point3::new(0.0, 240.0 / 600.0 * 0.95 + 1e-3, 0.05)));
+        assert!(!view.contains(&Point3::new(0.0, 0.0, 1.5)), "behind the camera");
+        // A top-down grasp closing along x, 4 cm wide: the pads open to 6 cm
+        // and are 1 cm thick, so they reach 4 cm from the centre; fingertips
+        // 5 cm above the table, the pads 4 cm up from there, where the
+        // border is nearest.
+        let out = |x: f64| hand_out_of_view(&top_down(x, 0.0, 0.05), 0.04, &gripper, &hand, &view);
+        assert!(!out(0.0));
+        assert!(!out(seen_x(0.09) - 0.04 - 2e-3));
+        assert!(out(seen_x(0.09) - 0.04 + 2e-3));
+        assert!(out(-(seen_x(0.09) - 0.04 + 2e-3)));
+        // Closing along y there instead: the pads reach only 1.35 cm (half
+        // the finger width) along x.
+        let turned = |x: f64| {
+            let mut g = top_down(x, 0.0, 0.05);
+            g.rotation =
+                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2) * g.rotation;
+            hand_out_of_view(&g, 0.04, &gripper, &hand, &view)
+        };
+        assert!(!turned(seen_x(0.09) - 0.0135 - 2e-3));
+        assert!(turned(seen_x(0.09) - 0.0135 + 2e-3));
     }
 
     /// Local points with their box, framed by `world_from_object`.

@@ -5,7 +5,9 @@ mod grasp;
 mod peaks;
 mod rank;
 
-pub use collision::{Collision, HandConfig, Obstacle, fit_opening, hand_collides, hand_collision};
+pub use collision::{
+    Collision, HandConfig, Obstacle, fit_opening, hand_collides, hand_collision, hand_out_of_view,
+};
 pub use grasp::{DecodeConfig, Grasp, ViewPlacement, decode_view, grasp_at};
 pub use peaks::{NEGLIGIBLE_QUALITY, find_peaks, smooth, smoothed_peaks};
-pub use rank::{RankConfig, rank_grasps, rank_grasps_accepted};
+pub use rank::{RankConfig, Ranked, Verdict, rank_grasps, rank_grasps_vetted};

@@ -16,19 +16,40 @@ pub struct RankConfig {
 /// Sorts best first (quality, then object id, view, pixel row and column:
 /// a total order, so equal inputs always rank the same) and applies the limits.
 pub fn rank_grasps(grasps: Vec<Grasp>, config: &RankConfig) -> Vec<Grasp> {
-    rank_grasps_accepted(grasps, config, Some).0
+    rank_grasps_vetted(grasps, config, Verdict::Accept).grasps
 }
 
-/// [`rank_grasps`], keeping what `vet` returns for each grasp: the grasp
-/// itself, a repaired one in its place (same rank), or `None` to refuse it.
-/// `vet` is asked in rank order, and only while a grasp could still make
-/// the list, so a costly check runs on few grasps. Also returns how many
-/// were refused.
-pub fn rank_grasps_accepted(
+/// What a check says of one grasp.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Verdict {
+    /// Keep it (or a repaired grasp in its place) at its rank.
+    Accept(Grasp),
+    /// Keep it, but after every accepted grasp (in rank order among the
+    /// deferred), if room is left.
+    Defer(Grasp),
+    /// Drop it.
+    Refuse,
+}
+
+/// The ranked list and what the check did to get it.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Ranked {
+    /// Best first: the accepted, then the deferred.
+    pub grasps: Vec<Grasp>,
+    /// Grasps refused.
+    pub refused: usize,
+    /// Deferred grasps in `grasps` (at its end).
+    pub deferred: usize,
+}
+
+/// [`rank_grasps`], with `vet`'s verdict on each grasp. `vet` is asked in
+/// rank order, and only while a grasp could still make the list, so a
+/// costly check runs on few grasps.
+pub fn rank_grasps_vetted(
     mut grasps: Vec<Grasp>,
     config: &RankConfig,
-    mut vet: impl FnMut(Grasp) -> Option<Grasp>,
-) -> (Vec<Grasp>, usize) {
+    mut vet: impl FnMut(Grasp) -> Verdict,
+) -> Ranked {
     grasps.retain(|g| g.quality >= config.min_quality);
     grasps.sort_by(|a, b| {
         b.quality
@@ -40,23 +61,42 @@ pub fn rank_grasps_accepted(
     });
     let mut per_object: rustc_hash::FxHashMap<u32, usize> = rustc_hash::FxHashMap::default();
     let mut kept = Vec::with_capacity(config.max_grasps.min(grasps.len()));
-    let mut refused = 0;
+    let (mut refused, mut deferred) = (0, Vec::new());
     for g in grasps {
         if kept.len() == config.max_grasps {
             break;
         }
-        let n = per_object.entry(g.object_id).or_insert(0);
-        if *n >= config.max_per_object {
+        if per_object
+            .get(&g.object_id)
+            .is_some_and(|&n| n >= config.max_per_object)
+        {
             continue;
         }
-        let Some(g) = vet(g) else {
-            refused += 1;
-            continue;
-        };
-        *n += 1;
-        kept.push(g);
+        match vet(g) {
+            Verdict::Accept(g) => {
+                *per_object.entry(g.object_id).or_insert(0) += 1;
+                kept.push(g);
+            }
+            Verdict::Defer(g) => deferred.push(g),
+            Verdict::Refuse => refused += 1,
+        }
     }
-    (kept, refused)
+    let accepted = kept.len();
+    for g in deferred {
+        if kept.len() == config.max_grasps {
+            break;
+        }
+        let n = per_object.entry(g.object_id).or_insert(0);
+        if *n < config.max_per_object {
+            *n += 1;
+            kept.push(g);
+        }
+    }
+    Ranked {
+        deferred: kept.len() - accepted,
+        grasps: kept,
+        refused,
+    }
 }
 
 #[cfg(test)]
@@ -119,18 +159,60 @@ mod tests {
             max_grasps: 3,
         };
         let mut asked = Vec::new();
-        let (kept, refused) = rank_grasps_accepted(grasps, &config, |mut g| {
+        let ranked = rank_grasps_vetted(grasps, &config, |mut g| {
             asked.push(g.pixel[0]);
             // Refuse pixel 2; widen pixel 3 (a repair keeps its rank).
             if g.pixel[0] == 3 {
                 g.width_m = 0.08;
             }
-            (g.pixel[0] != 2).then_some(g)
+            if g.pixel[0] == 2 {
+                Verdict::Refuse
+            } else {
+                Verdict::Accept(g)
+            }
         });
-        let keys: Vec<(u32, f64)> = kept.iter().map(|g| (g.pixel[0], g.width_m)).collect();
+        let keys: Vec<(u32, f64)> = ranked.grasps.iter().map(|g| (g.pixel[0], g.width_m)).collect();
         assert_eq!(keys, vec![(1, 0.05), (3, 0.08), (4, 0.05)]);
-        assert_eq!(refused, 1);
+        assert_eq!((ranked.refused, ranked.deferred), (1, 0));
         // Each grasp was asked about once, in rank order.
         assert_eq!(asked, vec![1, 2, 3, 4]);
+    }
+
+    #[test]
+    fn deferred_grasps_come_after_every_accepted_one_within_the_limits() {
+        let grasps = vec![
+            grasp(1, 0.9, 1),
+            grasp(1, 0.8, 2),
+            grasp(2, 0.7, 3),
+            grasp(1, 0.6, 4),
+            grasp(3, 0.5, 5),
+        ];
+        let config = RankConfig {
+            min_quality: 0.0,
+            max_per_object: 2,
+            max_grasps: 4,
+        };
+        // Pixels 1 and 3 deferred: the rest keep their order, then 1, 3.
+        let defer = |g: Grasp| {
+            if [1, 3].contains(&g.pixel[0]) {
+                Verdict::Defer(g)
+            } else {
+                Verdict::Accept(g)
+            }
+        };
+        let ranked = rank_grasps_vetted(grasps.clone(), &config, defer);
+        let keys: Vec<u32> = ranked.grasps.iter().map(|g| g.pixel[0]).collect();
+        // Object 1 has two accepted grasps (2 and 4): its deferred 1 finds no room.
+        assert_eq!(keys, vec![2, 4, 5, 3]);
+        assert_eq!((ranked.refused, ranked.deferred), (0, 1));
+        // With the list full of accepted grasps the deferred never show.
+        let three = RankConfig {
+            max_grasps: 3,
+            ..config
+        };
+        let ranked = rank_grasps_vetted(grasps, &three, defer);
+        let keys: Vec<u32> = ranked.grasps.iter().map(|g| g.pixel[0]).collect();
+        assert_eq!(keys, vec![2, 4, 5]);
+        assert_eq!(ranked.deferred, 0);
     }
 }

@@ -47,6 +47,43 @@ pub struct DepthFrame<'a> {
     pub intrinsics: Intrinsics,
 }
 
+/// Where a depth camera looked: its pose, intrinsics and image size. A
+/// point outside it was never seen, free or not.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FieldOfView {
+    /// Camera pose in the world (OpenCV camera frame).
+    pub world_from_camera: Isometry3<f64>,
+    /// Pinhole intrinsics.
+    pub intrinsics: Intrinsics,
+    /// Columns.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+}
+
+impl FieldOfView {
+    /// The field of view of `frame` taken from `world_from_camera`.
+    pub fn of(frame: &DepthFrame<'_>, world_from_camera: &Isometry3<f64>) -> Self {
+        Self {
+            world_from_camera: *world_from_camera,
+            intrinsics: frame.intrinsics,
+            width: frame.width,
+            height: frame.height,
+        }
+    }
+
+    /// Whether the world point `p` lies in front of the camera and projects
+    /// onto the image (pixel centres at integers; the image spans
+    /// `-0.5 ..= width - 0.5`).
+    pub fn contains(&self, p: &Point3<f64>) -> bool {
+        let in_camera = self.world_from_camera.inverse_transform_point(p);
+        self.intrinsics.project(&in_camera).is_some_and(|(u, v, _)| {
+            (-0.5..=f64::from(self.width) - 0.5).contains(&u)
+                && (-0.5..=f64::from(self.height) - 0.5).contains(&v)
+        })
+    }
+}
+
 /// The frame a point cloud is expressed in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CloudFrame {

@@ -319,6 +319,89 @@ fn openings_too_narrow_for_the_object_are_re_fitted() {
     );
 }
 
+/// An object cut by the image border looks narrower than it is: a grasp
+/// whose pads reach past the border may land one of them on the part never
+/// seen. Such grasps are ranked after every grasp that stays in view (not
+/// dropped: the object may have no other); an object well inside the image
+/// is planned as without the check.
+#[test]
+fn grasps_reaching_past_the_image_border_are_ranked_last() {
+    // Straight down from 0.7 m, 160 x 120 px at 150 px: columns run along
+    // world x, and the table is seen out to x = 80 / 150 * 0.7 = 0.373 m.
+    let camera = Camera::looking_at(Vector3::new(0.0, 0.0, 0.7), Vector3::zeros(), 160, 120, 150.0);
+    let hand = HandConfig::default();
+    let unbounded = HandConfig {
+        out_of_view_last: false,
+        ..hand.clone()
+    };
+    // Where the pads' outer corners fall in the image, computed here from
+    // the hand's dimensions (DESIGN.md's grasp frame: x closing, z approach).
+    let gripper = PlanOptions::default().gripper;
+    let reaches_past_border = |g: &mvgrasp_core::Grasp| {
+        let half =
+            (g.width_m + hand.opening_clearance_m).min(gripper.max_width_m) / 2.0 + hand.pad_thickness_m;
+        [-half, half].into_iter().any(|x| {
+            [-1.0, 1.0].into_iter().any(|side| {
+                [0.0, -gripper.finger_depth_m].into_iter().any(|z| {
+                    let world = g.world_from_grasp * Point3::new(x, side * gripper.finger_width_m / 2.0, z);
+                    let c = camera.world_from_camera.inverse_transform_point(&world);
+                    let u = camera.intrinsics.fx * c.x / c.z + camera.intrinsics.cx;
+                    let v = camera.intrinsics.fy * c.y / c.z + camera.intrinsics.cy;
+                    !(-0.5..=159.5).contains(&u) || !(-0.5..=119.5).contains(&v)
+                })
+            })
+        })
+    };
+    let box_at = |x: f64| Scene {
+        table_z: 0.0,
+        table_half: [0.6, 0.4],
+        shapes: vec![Shape::standing_box(0.0, x, 0.0, 0.0, [0.06, 0.09, 0.08])],
+    };
+    let sorted = |plan: &Plan| {
+        let mut keys: Vec<_> = plan
+            .grasps
+            .iter()
+            .map(|g| (g.view, g.pixel, g.width_m.to_bits()))
+            .collect();
+        keys.sort();
+        keys
+    };
+
+    // 6 cm along x from 0.30 to 0.36 m: its top (0.62 m from the camera) is
+    // seen only out to 0.331 m, half of it.
+    let [bounded, free] = plans_with_hands(
+        &box_at(0.33),
+        &camera,
+        &mut MomentsNet::default(),
+        [hand.clone(), unbounded.clone()],
+    );
+    let past: Vec<bool> = free.grasps.iter().map(reaches_past_border).collect();
+    assert!(past.contains(&true) && past.contains(&false), "{past:?}");
+    assert!(
+        past.windows(2).any(|w| w[0] && !w[1]),
+        "unchecked, a grasp past the border already ranks last"
+    );
+    // Checked: the same grasps, those past the border all at the end.
+    assert_eq!(sorted(&bounded), sorted(&free));
+    let past: Vec<bool> = bounded.grasps.iter().map(reaches_past_border).collect();
+    let first_past = past.iter().position(|&p| p).expect("a grasp past the border");
+    assert!(past[first_past..].iter().all(|&p| p), "{past:?}");
+    assert_eq!(bounded.ranked_last_out_of_view, past.len() - first_past);
+    assert_eq!(free.ranked_last_out_of_view, 0);
+    assert_eq!(bounded.refused_for_collision, free.refused_for_collision);
+
+    // In the middle of the image the check changes nothing.
+    let [bounded, free] = plans_with_hands(
+        &box_at(0.0),
+        &camera,
+        &mut MomentsNet::default(),
+        [hand, unbounded],
+    );
+    assert!(!free.grasps.is_empty());
+    assert_eq!(bounded.grasps, free.grasps);
+    assert_eq!(bounded.ranked_last_out_of_view, 0);
+}
+
 /// The hand check with its opening re-fit off.
 fn hand_without_fit() -> HandConfig {
     HandConfig {

@@ -641,14 +641,60 @@ mod physics {
 
 mod eval {
     use mvgrasp_core::{CreaseConfig, GraspNet, MomentsNet, Planner, PlannerConfig, ViewPolicy};
+    use mvgrasp_sim::camera::Camera;
     use mvgrasp_sim::camera::Frame;
     use mvgrasp_sim::eval::{
         Attempt, CollisionSite, End, Episode, EpisodeConfig, Failure, GraspSource, InProcess, PlannedGrasp,
-        Setting, Summary, collision_list, crease_setting, markdown_table, run_episode, same_grasp,
+        Setting, Summary, collision_list, crease_setting, episode_scene, markdown_table,
+        objects_outside_view, run_episode, same_grasp,
     };
     use mvgrasp_sim::grasp::{HandPart, Obstacle};
     use mvgrasp_sim::scene::Scenario;
     use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+
+    /// An episode's camera holds every object whole when one of its draws
+    /// does; the count says which objects it would cut.
+    #[test]
+    fn episode_cameras_hold_every_object() {
+        let catalog = mvgrasp_sim::objects::Catalog::of(&mvgrasp_sim::objects::Family::ALL);
+        let (mut held, mut redrawn) = (0, 0);
+        for seed in 900_000..900_006 {
+            let (scene, camera) = episode_scene(Scenario::Clutter, seed, &catalog).unwrap();
+            // The first draw, as the episode's camera was before 2026-11-24.
+            let mut rng =
+                mvgrasp_core::rng::SplitMix64::new(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xE7A1);
+            let first = Camera::random(&mut rng, Vector3::new(0.0, 0.0, f64::from(scene.table_z)), false);
+            let outside = objects_outside_view(&scene, &camera);
+            assert!(outside <= objects_outside_view(&scene, &first));
+            held += usize::from(outside == 0);
+            redrawn += usize::from(camera.world_from_camera != first.world_from_camera);
+            // Every object the camera holds projects inside the image: its
+            // rendered pixels never touch the border.
+            let frame = mvgrasp_sim::camera::render(&scene, &camera, None);
+            let (w, h) = (camera.width as usize, camera.height as usize);
+            let touching = (0..scene.objects.len())
+                .filter(|&i| {
+                    frame.labels.iter().enumerate().any(|(p, &l)| {
+                        usize::from(l) == i + 2
+                            && (p % w == 0 || p % w == w - 1 || p / w == 0 || p / w == h - 1)
+                    })
+                })
+                .count();
+            assert!(
+                touching <= outside,
+                "seed {seed}: {touching} objects at the border, {outside} outside"
+            );
+        }
+        // 15-20 objects over 0.8 x 0.64 m: the first draw often cuts some.
+        assert!(redrawn > 0 && held >= 5, "redrawn {redrawn}, held {held} of 6");
+        // Moved 3 m away, an object is outside any camera's view.
+        let (mut scene, camera) = episode_scene(Scenario::Isolated, 900_000, &catalog).unwrap();
+        assert_eq!(objects_outside_view(&scene, &camera), 0);
+        let o = &mut scene.objects[0];
+        o.world_from_object.translation.x += 3.0;
+        o.world_aabb = o.model.aabb_at(&o.world_from_object);
+        assert_eq!(objects_outside_view(&scene, &camera), 1);
+    }
 
     #[test]
     fn settings_parse_and_bad_ones_say_why() {
