@@ -6,7 +6,7 @@ use mvgrasp_server::BackendKind;
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
 use crate::{
-    fixture::{request, settings, start},
+    fixture::{request, sample, scrape, settings, start},
     scene::{Camera, Scene, Shape, grid_scene},
 };
 
@@ -23,6 +23,18 @@ fn isometry(p: &pb::Pose) -> (Isometry3<f64>, f64) {
     )
 }
 
+/// Best first, those reaching past the image border after the rest.
+fn check_ranked(response: &pb::PlanGraspsResponse) {
+    let deferred = response.ranked_last_out_of_view as usize;
+    assert!(deferred <= response.grasps.len());
+    let (in_view, past) = response.grasps.split_at(response.grasps.len() - deferred);
+    for part in [in_view, past] {
+        for pair in part.windows(2) {
+            assert!(pair[0].quality >= pair[1].quality, "grasps not sorted by quality");
+        }
+    }
+}
+
 /// Checks one answer against its scene.
 fn check(response: &pb::PlanGraspsResponse, scene: &Scene, max_width_m: f64) {
     assert_eq!(
@@ -31,9 +43,7 @@ fn check(response: &pb::PlanGraspsResponse, scene: &Scene, max_width_m: f64) {
         "every object detected once"
     );
     assert!(!response.grasps.is_empty(), "no grasp");
-    for pair in response.grasps.windows(2) {
-        assert!(pair[0].quality >= pair[1].quality, "grasps not sorted by quality");
-    }
+    check_ranked(response);
     for g in &response.grasps {
         let (world_from_grasp, norm) = isometry(g.pose.as_ref().unwrap());
         assert!((norm - 1.0).abs() < 1e-9, "quaternion norm {norm}");
@@ -113,6 +123,44 @@ async fn rendered_scenes_with_the_onnx_and_baseline_backends() {
         assert!(response.grasps.iter().all(|g| g.width_m <= 0.085));
         server.shutdown().await.unwrap();
     }
+}
+
+/// A box half outside the image: the service ranks the grasps whose pads
+/// reach past the border last and says how many they are.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn grasps_past_the_image_border_come_last_and_are_counted() {
+    let (server, mut client) = start(settings(BackendKind::Baseline)).await;
+    // Straight down from 0.7 m, 160 x 120 px at 150 px: the table is seen
+    // out to x = 0.373 m, the box's top (0.62 m away) out to 0.331 m.
+    let camera = Camera::looking_at(Vector3::new(0.0, 0.0, 0.7), Vector3::zeros(), 160, 120, 150.0);
+    let scene_at = |x: f64| Scene {
+        table_z: 0.0,
+        table_half: [0.6, 0.4],
+        shapes: vec![Shape::standing_box(0.0, x, 0.0, 0.0, [0.06, 0.09, 0.08])],
+    };
+    let plan = |x: f64| {
+        let mut r = request(&scene_at(x), &camera);
+        r.min_quality = Some(0.0);
+        r.max_grasps = 100;
+        r.view_policy = pb::ViewPolicy::All as i32;
+        r
+    };
+    let cut = client.plan(plan(0.33)).await.unwrap();
+    check_ranked(&cut);
+    assert!(
+        cut.ranked_last_out_of_view > 0,
+        "no grasp reaches past the border"
+    );
+    assert!((cut.ranked_last_out_of_view as usize) < cut.grasps.len());
+    let whole = client.plan(plan(0.0)).await.unwrap();
+    assert!(!whole.grasps.is_empty());
+    assert_eq!(whole.ranked_last_out_of_view, 0);
+    let metrics = scrape(server.metrics_addr.unwrap()).await;
+    assert_eq!(
+        sample(&metrics, "mvgrasp_grasps_out_of_view_total "),
+        f64::from(cut.ranked_last_out_of_view)
+    );
+    server.shutdown().await.unwrap();
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -7,7 +7,6 @@ use futures_util::StreamExt;
 use mvgrasp_client::{Error, PlannerClient};
 use mvgrasp_server::BackendKind;
 use nalgebra::Vector3;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tonic::Code;
 use tonic_health::pb::health_check_response::ServingStatus;
 use tonic_reflection::pb::v1::{
@@ -16,31 +15,9 @@ use tonic_reflection::pb::v1::{
 };
 
 use crate::{
-    fixture::{connect, request, settings, slow_net, start, start_with},
+    fixture::{connect, request, sample, scrape, settings, slow_net, start, start_with},
     scene::{Camera, grid_scene},
 };
-
-async fn scrape(addr: std::net::SocketAddr) -> String {
-    let mut stream = tokio::net::TcpStream::connect(addr).await.unwrap();
-    stream
-        .write_all(b"GET /metrics HTTP/1.1\r\nHost: test\r\n\r\n")
-        .await
-        .unwrap();
-    let mut body = String::new();
-    stream.read_to_string(&mut body).await.unwrap();
-    assert!(body.starts_with("HTTP/1.1 200"), "{body}");
-    body
-}
-
-/// The value of the first sample line starting with `prefix`.
-fn sample(metrics: &str, prefix: &str) -> f64 {
-    metrics
-        .lines()
-        .find(|l| l.starts_with(prefix))
-        .and_then(|l| l.rsplit(' ').next())
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("no sample {prefix}"))
-}
 
 fn frame() -> mvgrasp_client::pb::PlanGraspsRequest {
     request(
