@@ -183,6 +183,18 @@ pub struct DebugView {
     pub maps: Option<Vec<f32>>,
 }
 
+/// Grasps the hand check refused, by what the hand would have hit (after
+/// the opening re-fit, where one was tried: what the re-fitted hand hit).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Refusals {
+    /// The table.
+    pub table: usize,
+    /// The grasp's own object (its opening could not be re-fitted).
+    pub own_object: usize,
+    /// Another object.
+    pub neighbour: usize,
+}
+
 /// The answer for one frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plan {
@@ -191,6 +203,8 @@ pub struct Plan {
     /// Grasps dropped because the hand would hit an observed point or the
     /// table ([`HandConfig`]).
     pub refused_for_collision: usize,
+    /// The same by what the hand would have hit.
+    pub refusals: Refusals,
     /// Grasps at the end of `grasps` because their pads reach past the
     /// image border ([`HandConfig::out_of_view_last`]).
     pub ranked_last_out_of_view: usize,
@@ -482,6 +496,7 @@ impl Planner {
                 points: &o.points,
             })
             .collect();
+        let mut refusals = Refusals::default();
         let ranked = rank_grasps_vetted(
             grasps,
             &RankConfig {
@@ -495,10 +510,18 @@ impl Planner {
                 let hit = |pose: &Isometry3<f64>, width: f64| {
                     hand_collision(pose, width, &options.gripper, hand, &table, &obstacles, own)
                 };
+                let mut refuse = |c: Collision| {
+                    match c {
+                        Collision::Table => refusals.table += 1,
+                        Collision::Object(i) if Some(i) == own => refusals.own_object += 1,
+                        Collision::Object(_) => refusals.neighbour += 1,
+                    }
+                    Verdict::Refuse
+                };
                 let g = match hit(&g.world_from_grasp, g.width_m) {
                     None => g,
                     // Pads on its own object: open to what was seen of it, and check again.
-                    Some(Collision::Object(i)) if hand.fit_opening && Some(i) == own => {
+                    Some(first @ Collision::Object(i)) if hand.fit_opening && Some(i) == own => {
                         let Some((pose, width)) = fit_opening(
                             &g.world_from_grasp,
                             g.width_m,
@@ -506,10 +529,10 @@ impl Planner {
                             hand,
                             &obstacles[i],
                         ) else {
-                            return Verdict::Refuse;
+                            return refuse(first);
                         };
-                        if hit(&pose, width).is_some() {
-                            return Verdict::Refuse;
+                        if let Some(again) = hit(&pose, width) {
+                            return refuse(again);
                         }
                         Grasp {
                             world_from_grasp: pose,
@@ -517,7 +540,7 @@ impl Planner {
                             ..g
                         }
                     }
-                    Some(_) => return Verdict::Refuse,
+                    Some(c) => return refuse(c),
                 };
                 // Pads past the image border: maybe onto the part of the
                 // object never seen. Tried last, not refused: the object may
@@ -555,6 +578,7 @@ impl Planner {
         Ok(Plan {
             grasps: ranked.grasps,
             refused_for_collision: ranked.refused,
+            refusals,
             ranked_last_out_of_view: ranked.deferred,
             objects: objects.into_iter().map(|o| o.object).collect(),
             table,

@@ -3,9 +3,10 @@
 //! at each such end the planner's view of the last frame: the objects still
 //! visible (their family, matched by position to the scene's start), the
 //! objects detected and their extents, how many candidates at tau the hand
-//! check refused, and, planned again at tau 0, how many grasps were kept and
-//! the best quality any reached. (Whether those grasps would have held:
-//! run the same setting at tau 0.)
+//! check refused (by what the hand would have hit: the table, the grasp's
+//! own object, a neighbour), and, planned again at tau 0, how many grasps
+//! were kept and the best quality any reached. (Whether those grasps would
+//! have held: run the same setting at tau 0.)
 //!
 //!     cargo run --release -p mvgrasp-sim --example why_no_grasp [SCENARIO] [SETTING] [EPISODES] [SEED] [MODEL] [FAMILIES]
 //!
@@ -82,13 +83,19 @@ impl GraspSource for Diagnosing<'_> {
                 })
                 .collect();
             self.last = format!(
-                "visible {} detected {} [{}] refused@tau {} kept@0 {} refused@0 {} best q {:.3}",
+                "visible {} detected {} [{}] refused@tau {} (table {} own {} neighbour {}) kept@0 {} refused@0 {} (table {} own {} neighbour {}) best q {:.3}",
                 labels.len(),
                 p.objects.len(),
                 sizes.join(" "),
                 p.refused_for_collision,
+                p.refusals.table,
+                p.refusals.own_object,
+                p.refusals.neighbour,
                 q.grasps.len(),
                 q.refused_for_collision,
+                q.refusals.table,
+                q.refusals.own_object,
+                q.refusals.neighbour,
                 best_q
             );
         }

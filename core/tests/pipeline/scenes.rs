@@ -244,6 +244,12 @@ fn the_hand_check_refuses_grasps_between_close_neighbours() {
         checked.refused_for_collision > 0,
         "no grasp refused among neighbours 7 cm apart"
     );
+    let r = checked.refusals;
+    assert_eq!(
+        r.table + r.own_object + r.neighbour,
+        checked.refused_for_collision
+    );
+    assert!(r.neighbour > 0, "{r:?}");
     assert!(!checked.grasps.is_empty());
     for g in &checked.grasps {
         assert!(
@@ -282,6 +288,8 @@ fn openings_too_narrow_for_the_object_are_re_fitted() {
         refused.refused_for_collision > 0,
         "narrow openings passed the check"
     );
+    // One box alone on the table: what the pads hit is the box itself.
+    assert_eq!(refused.refusals.own_object, refused.refused_for_collision);
     assert!(fitted.refused_for_collision < refused.refused_for_collision);
     // Every decoded grasp was asked about: it is kept (maybe re-fitted) or refused.
     assert_eq!(
