@@ -726,6 +726,46 @@ fn try_grasp(
     (Tried::Trial(failure), Some(trial.poses))
 }
 
+/// One episode as a record of `eval.json`'s `episodes`: its scenario,
+/// setting and seed, objects at the start, removed and fallen off, how it
+/// ended, and each attempt in order as `[outcome, quality, width_mm,
+/// down_deg, plan_ms]`: "ok", a failure's name, or for a collision on
+/// approach what was hit ([`CollisionSite::name`]); the approach's angle
+/// below the horizontal (90: straight down).
+pub fn episode_record(e: &Episode, setting: &str) -> serde_json::Value {
+    let round = |v: f64, places: i32| (v * 10f64.powi(places)).round() / 10f64.powi(places);
+    let attempts: Vec<serde_json::Value> = e
+        .attempts
+        .iter()
+        .map(|a| {
+            let outcome = match (a.failure, a.collision) {
+                (None, _) => "ok".to_owned(),
+                (Some(_), Some(site)) => format!("collision on approach: {}", site.name()),
+                (Some(f), None) => f.name().to_owned(),
+            };
+            let approach = a.world_from_grasp.rotation * Vector3::z();
+            let down_deg = (-approach.z).clamp(-1.0, 1.0).asin().to_degrees();
+            serde_json::json!([
+                outcome,
+                round(f64::from(a.quality), 3),
+                round(a.width_m * 1e3, 1),
+                round(down_deg, 1),
+                round(a.plan_ms, 2),
+            ])
+        })
+        .collect();
+    serde_json::json!({
+        "scenario": e.scenario.name(),
+        "setting": setting,
+        "seed": e.seed,
+        "objects": e.objects,
+        "removed": e.removed,
+        "fell_off": e.fell_off,
+        "end": e.end.name(),
+        "attempts": attempts,
+    })
+}
+
 /// Episodes of one scenario under one setting, summed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Summary {

@@ -11,7 +11,7 @@ use mvgrasp_server::settings::ModelSettings;
 use mvgrasp_sim::camera::render;
 use mvgrasp_sim::eval::{
     Episode, EpisodeConfig, Failure, GraspSource, InProcess, Remote, Setting, Summary, collision_list,
-    episode_scene, markdown_table, run_episode,
+    episode_record, episode_scene, markdown_table, run_episode,
 };
 use mvgrasp_sim::files::{DrawnGrasp, write_grasp_snapshot};
 use mvgrasp_sim::scene::Scenario;
@@ -162,6 +162,9 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         .collect();
     bar.finish_and_clear();
     let results = results.into_iter().collect::<anyhow::Result<Vec<_>>>()?;
+    // For eval.json: scenario, setting, seed order.
+    let mut episodes_in_order: Vec<&(usize, Episode)> = results.iter().collect();
+    episodes_in_order.sort_by_key(|(k, e)| (scenarios.iter().position(|s| *s == e.scenario), *k, e.seed));
     let mut summaries = Vec::new();
     for &scenario in scenarios {
         for (k, setting) in settings.iter().enumerate() {
@@ -256,6 +259,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
             "ended_without_grasp": s.ended_without_grasp, "cleared": s.cleared,
             "plan_ms_p50": s.plan_ms[0], "plan_ms_p90": s.plan_ms[1],
         })).collect::<Vec<_>>(),
+        "episodes": episodes_in_order.iter().map(|(k, e)| episode_record(e, &settings[*k].name())).collect::<Vec<_>>(),
     });
     std::fs::write(out.join("eval.json"), serde_json::to_string_pretty(&json)?)
         .with_context(|| format!("writing {}", out.display()))?;

@@ -645,7 +645,7 @@ mod eval {
     use mvgrasp_sim::camera::Frame;
     use mvgrasp_sim::eval::{
         Attempt, CollisionSite, End, Episode, EpisodeConfig, Failure, GraspSource, InProcess, PlannedGrasp,
-        Setting, Summary, collision_list, crease_setting, episode_scene, markdown_table,
+        Setting, Summary, collision_list, crease_setting, episode_record, episode_scene, markdown_table,
         objects_outside_view, run_episode, same_grasp,
     };
     use mvgrasp_sim::grasp::{HandPart, Obstacle};
@@ -694,6 +694,84 @@ mod eval {
         o.world_from_object.translation.x += 3.0;
         o.world_aabb = o.model.aabb_at(&o.world_from_object);
         assert_eq!(objects_outside_view(&scene, &camera), 1);
+    }
+
+    /// `eval.json`'s per-episode record: the books and every attempt.
+    #[test]
+    fn an_episode_record_keeps_the_books_and_each_attempt() {
+        // Straight down (grasp z = world -z), then level (grasp z = world x).
+        let down = Isometry3::from_parts(
+            nalgebra::Translation3::new(0.1, 0.2, 0.05),
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+        );
+        let level = Isometry3::from_parts(
+            nalgebra::Translation3::identity(),
+            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), std::f64::consts::FRAC_PI_2),
+        );
+        let e = Episode {
+            scenario: Scenario::Pile,
+            seed: 900_003,
+            objects: 5,
+            removed: 1,
+            fell_off: 1,
+            attempts: vec![
+                Attempt {
+                    plan_ms: 12.345,
+                    world_from_grasp: down,
+                    width_m: 0.0614,
+                    quality: 0.71234,
+                    failure: None,
+                    collision: None,
+                },
+                Attempt {
+                    plan_ms: 9.0,
+                    world_from_grasp: level,
+                    width_m: 0.08,
+                    quality: 0.5,
+                    failure: Some(Failure::CollisionOnApproach),
+                    collision: Some(CollisionSite {
+                        obstacle: Obstacle::Neighbour(0),
+                        part: HandPart::Palm,
+                        on_the_way_in: true,
+                    }),
+                },
+                Attempt {
+                    plan_ms: 8.0,
+                    world_from_grasp: down,
+                    width_m: 0.1,
+                    quality: 0.4,
+                    failure: Some(Failure::SlipDuringLift),
+                    collision: None,
+                },
+            ],
+            end: End::NoGraspAboveTau,
+            last_plan_ms: Some(7.0),
+        };
+        let r = episode_record(&e, "all:0.1");
+        assert_eq!(r["scenario"], "pile");
+        assert_eq!(r["setting"], "all:0.1");
+        assert_eq!(r["seed"], 900_003);
+        assert_eq!(
+            (
+                r["objects"].as_u64(),
+                r["removed"].as_u64(),
+                r["fell_off"].as_u64()
+            ),
+            (Some(5), Some(1), Some(1))
+        );
+        assert_eq!(r["end"], "no grasp above tau");
+        let a = r["attempts"].as_array().unwrap();
+        assert_eq!(a.len(), 3);
+        assert_eq!(a[0], serde_json::json!(["ok", 0.712, 61.4, 90.0, 12.35]));
+        assert_eq!(
+            a[1][0],
+            format!(
+                "collision on approach: {}",
+                e.attempts[1].collision.unwrap().name()
+            )
+        );
+        assert_eq!(a[1][3], 0.0);
+        assert_eq!(a[2][0], Failure::SlipDuringLift.name());
     }
 
     #[test]
