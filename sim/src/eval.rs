@@ -43,7 +43,7 @@ use std::time::Instant;
 use mvgrasp_client::request::{depth_request, pose_from_message};
 use mvgrasp_client::{PlannerClient, pb};
 use mvgrasp_core::rng::SplitMix64;
-use mvgrasp_core::{CreaseConfig, GraspNet, PlanOptions, Planner, ViewPolicy, Workspace};
+use mvgrasp_core::{CreaseConfig, FieldOfView, GraspNet, PlanOptions, Planner, ViewPolicy, Workspace};
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use parry3d::math::Pose;
 
@@ -375,23 +375,20 @@ pub const CAMERA_DRAWS: usize = 32;
 /// Objects of `scene` whose bounding box `camera` does not hold whole: a
 /// corner behind it or projecting outside the image.
 pub fn objects_outside_view(scene: &Scene, camera: &Camera) -> usize {
-    let (w, h) = (f64::from(camera.width), f64::from(camera.height));
-    let k = camera.intrinsics;
+    let view = FieldOfView {
+        world_from_camera: camera.world_from_camera,
+        intrinsics: camera.intrinsics,
+        width: camera.width,
+        height: camera.height,
+    };
     scene
         .objects
         .iter()
         .filter(|o| {
-            let (lo, hi) = (o.world_aabb.mins, o.world_aabb.maxs);
-            (0..8).any(|i| {
-                let corner = Point3::new(
-                    f64::from(if i & 1 == 0 { lo.x } else { hi.x }),
-                    f64::from(if i & 2 == 0 { lo.y } else { hi.y }),
-                    f64::from(if i & 4 == 0 { lo.z } else { hi.z }),
-                );
-                let c = camera.world_from_camera.inverse_transform_point(&corner);
-                k.project(&c)
-                    .is_none_or(|(u, v, _)| !(-0.5..=w - 0.5).contains(&u) || !(-0.5..=h - 0.5).contains(&v))
-            })
+            o.world_aabb
+                .vertices()
+                .iter()
+                .any(|c| !view.contains(&Point3::new(f64::from(c.x), f64::from(c.y), f64::from(c.z))))
         })
         .count()
 }
