@@ -10,9 +10,10 @@
 #
 # `datagen SECONDS`: `sim datagen` in chunks of $SCENES_PER_CHUNK scenes
 # (isolated, packed, pile and heavy clutter in turn, 72 px x 3.33 mm views,
-# data version $DATA_VERSION, default sim-5: sim-4's labels (fingertips 3 cm
+# data version $DATA_VERSION, default sim-6: sim-4's labels (fingertips 3 cm
 # past the surface, as the planner has inserted them since 7332953; sim-3
-# was 1.5 cm) with a 20 degree friction cone and a torque limit), each chunk with its own seed range, until the next
+# was 1.5 cm) with a 20 degree friction cone and a 0.6 N m torque limit
+# (sim-5: 0.15 N m)), each chunk with its own seed range, until the next
 # chunk would pass SECONDS. Each chunk's scenes, views and wall time go to
 # $OUT/datagen.tsv: that is the throughput figure of issue 3.
 # `train MINUTES ARCH...`: one training run per architecture (default:
@@ -27,7 +28,7 @@ DATA=${DATA:-/tmp/mvgrasp-data}
 OUT=${OUT:-/tmp/out}
 SCENES_PER_CHUNK=${SCENES_PER_CHUNK:-1200}
 SEED0=${SEED0:-200000}
-DATA_VERSION=${DATA_VERSION:-sim-5}
+DATA_VERSION=${DATA_VERSION:-sim-6}
 POSITIVE_WEIGHT=${POSITIVE_WEIGHT:-10}
 mkdir -p "$DATA" "$OUT"
 

@@ -251,6 +251,11 @@ pub struct Attempt {
     pub failure: Option<Failure>,
     /// For a collision on approach: what the hand hit, and where.
     pub collision: Option<CollisionSite>,
+    /// For a physics trial: the analytic label of the grasp as tried
+    /// ([`GraspLabel::name`]) and its object's family, to set the labels
+    /// the network learns from against physics on the planner's own grasps
+    /// ([`label_table`]).
+    pub label: Option<(&'static str, Family)>,
 }
 
 /// What a collision on approach hit, with which part of the hand, and
@@ -622,6 +627,7 @@ pub fn run_episode(
             episode.last_plan_ms = Some(plan_ms);
             break;
         };
+        let mut label = None;
         let (failure, collision) = match scene.object_at(&grasp.object_centroid, 0.01) {
             None => {
                 refused.push(grasp.world_from_grasp);
@@ -631,7 +637,10 @@ pub fn run_episode(
                 let (tried, poses) = try_grasp(&scene, target, &grasp, config);
                 let (failure, collision) = match tried {
                     Tried::Collided(site) => (Some(Failure::CollisionOnApproach), Some(site)),
-                    Tried::Trial(failure) => (failure, None),
+                    Tried::Trial(failure, name) => {
+                        label = Some((name, scene.objects[target].model.family));
+                        (failure, None)
+                    }
                 };
                 // The scene as the trial left it (a pushed neighbour stays
                 // pushed, a dropped object lies where it fell), the target
@@ -661,6 +670,7 @@ pub fn run_episode(
             quality: grasp.quality,
             failure,
             collision,
+            label,
         });
     }
     Ok(episode)
@@ -670,8 +680,9 @@ pub fn run_episode(
 enum Tried {
     /// The approach check stopped it.
     Collided(CollisionSite),
-    /// The physics trial ran: its failure, if any.
-    Trial(Option<Failure>),
+    /// The physics trial ran: its failure, if any, and the grasp's label
+    /// ([`GraspLabel::name`]).
+    Trial(Option<Failure>, &'static str),
 }
 
 /// The approach check, then the physics trial, of `grasp` on object
@@ -720,15 +731,18 @@ fn try_grasp(
             _ => Some(Failure::ObjectMissed),
         },
     };
-    (Tried::Trial(failure), Some(trial.poses))
+    let name = final_label.as_ref().map_or("none", GraspLabel::name);
+    (Tried::Trial(failure, name), Some(trial.poses))
 }
 
 /// One episode as a record of `eval.json`'s `episodes`: its scenario,
 /// setting and seed, objects at the start, removed and fallen off, how it
 /// ended, and each attempt in order as `[outcome, quality, width_mm,
-/// down_deg, plan_ms]`: "ok", a failure's name, or for a collision on
-/// approach what was hit ([`CollisionSite::name`]); the approach's angle
-/// below the horizontal (90: straight down).
+/// down_deg, plan_ms, label, family]`: "ok", a failure's name, or for a
+/// collision on approach what was hit ([`CollisionSite::name`]); the
+/// approach's angle below the horizontal (90: straight down); for a physics
+/// trial the grasp's analytic label ([`GraspLabel::name`]) and its object's
+/// family, else null.
 pub fn episode_record(e: &Episode, setting: &str) -> serde_json::Value {
     let round = |v: f64, places: i32| (v * 10f64.powi(places)).round() / 10f64.powi(places);
     let attempts: Vec<serde_json::Value> = e
@@ -742,12 +756,15 @@ pub fn episode_record(e: &Episode, setting: &str) -> serde_json::Value {
             };
             let approach = a.world_from_grasp.rotation * Vector3::z();
             let down_deg = (-approach.z).clamp(-1.0, 1.0).asin().to_degrees();
+            let (label, family) = a.label.map_or((None, None), |(l, f)| (Some(l), Some(f.name())));
             serde_json::json!([
                 outcome,
                 round(f64::from(a.quality), 3),
                 round(a.width_m * 1e3, 1),
                 round(down_deg, 1),
                 round(a.plan_ms, 2),
+                label,
+                family,
             ])
         })
         .collect();
@@ -761,6 +778,56 @@ pub fn episode_record(e: &Episode, setting: &str) -> serde_json::Value {
         "end": e.end.name(),
         "attempts": attempts,
     })
+}
+
+/// A Markdown table of how the analytic labels fared in physics on the
+/// grasps `episodes` tried: per label kind ([`GraspLabel::name`]), grasps
+/// that held (reached the basket) of those tried, over every family and
+/// per family. Collisions on approach and grasps that matched no object
+/// never reach physics and are not counted. Empty without physics trials.
+pub fn label_table(episodes: &[&Episode]) -> String {
+    // (label, family) -> (held, tried); family None: every family.
+    let mut counts: BTreeMap<(&str, Option<Family>), (usize, usize)> = BTreeMap::new();
+    let mut families: Vec<Family> = Vec::new();
+    for a in episodes.iter().flat_map(|e| &e.attempts) {
+        let Some((label, family)) = a.label else { continue };
+        if !families.contains(&family) {
+            families.push(family);
+        }
+        for key in [(label, None), (label, Some(family))] {
+            let c = counts.entry(key).or_insert((0, 0));
+            c.0 += usize::from(a.failure.is_none());
+            c.1 += 1;
+        }
+    }
+    if counts.is_empty() {
+        return String::new();
+    }
+    families.sort_by_key(|f| Family::ALL.iter().position(|x| x == f));
+    let mut out = format!(
+        "The tried grasps' analytic labels against physics (held / tried; the labels the network learns from, \
+         on the planner's own grasps):\n\n| label | every family | {} |\n|---|---:|{}\n",
+        families.iter().map(|f| f.name()).collect::<Vec<_>>().join(" | "),
+        "---:|".repeat(families.len())
+    );
+    let labels: Vec<&str> = counts
+        .keys()
+        .filter(|(_, f)| f.is_none())
+        .map(|(l, _)| *l)
+        .collect();
+    for label in labels {
+        let cell = |family: Option<Family>| match counts.get(&(label, family)) {
+            Some(&(held, tried)) => format!("{:.2} ({held}/{tried})", held as f64 / tried as f64),
+            None => "-".to_owned(),
+        };
+        let per_family: Vec<String> = families.iter().map(|&f| cell(Some(f))).collect();
+        out.push_str(&format!(
+            "| {label} | {} | {} |\n",
+            cell(None),
+            per_family.join(" | ")
+        ));
+    }
+    out
 }
 
 /// Episodes of one scenario under one setting, summed.

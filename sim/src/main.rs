@@ -77,9 +77,9 @@ enum Command {
         /// Worker threads (default: one per core).
         #[arg(long)]
         threads: Option<usize>,
-        /// Data version recorded in the manifest (sim-5: the labels of
+        /// Data version recorded in the manifest (sim-6: the labels of
         /// `grasp.rs` as they are now; older versions are in MODEL_CARD.md).
-        #[arg(long, default_value = "sim-5")]
+        #[arg(long, default_value = "sim-6")]
         data_version: String,
     },
     /// Clear-the-table in physics with the planner in the loop: success and

@@ -246,20 +246,21 @@ mod grasp_labels {
 
     #[test]
     fn the_weight_off_the_closing_line_twists_it() {
-        // A 30 x 4 x 8 cm bar lying along x (0.38 kg): gripped across its
-        // 4 cm side, the torque grows with the distance from its middle.
-        let scene = box_scene([0.30, 0.04, 0.08]);
+        // A 40 x 8 x 8 cm bar lying along x (1 kg): gripped across its
+        // 8 cm side, the torque grows with the distance from its middle.
+        let scene = box_scene([0.40, 0.08, 0.08]);
         let g = GripperModel::robotiq_2f_140();
         let weight = scene.objects[0].model.mass_kg * 9.81;
-        let at = |x: f64| label_grasp(&scene, 0, &top_down_grasp(x, 0.0, 0.04, V3::y()), 0.04, &g);
+        let at = |x: f64| label_grasp(&scene, 0, &top_down_grasp(x, 0.0, 0.04, V3::y()), 0.08, &g);
         let score = |label: GraspLabel| match label {
             GraspLabel::Positive { score, .. } => score,
             other => panic!("{other:?}"),
         };
         let (middle, near) = (score(at(0.0)), score(at(0.03)));
         assert!((middle - 1.0).abs() < 1e-6 && near < middle, "{middle} {near}");
-        // 0.15 N m is reached 0.15 / weight from the middle.
+        // The limit (0.6 N m) is reached limit / weight from the middle.
         let limit = f64::from(g.max_torque_nm / weight);
+        assert!(limit > 0.03 && limit < 0.15, "{limit}");
         assert!(score(at(limit - 0.005)) > 0.8);
         let twisted = at(limit + 0.005);
         assert!(
@@ -645,10 +646,11 @@ mod eval {
     use mvgrasp_sim::camera::Frame;
     use mvgrasp_sim::eval::{
         Attempt, CollisionSite, End, Episode, EpisodeConfig, Failure, GraspSource, InProcess, PlannedGrasp,
-        Setting, Summary, collision_list, crease_setting, episode_record, episode_scene, markdown_table,
-        objects_outside_view, run_episode, same_grasp,
+        Setting, Summary, collision_list, crease_setting, episode_record, episode_scene, label_table,
+        markdown_table, objects_outside_view, run_episode, same_grasp,
     };
     use mvgrasp_sim::grasp::{HandPart, Obstacle};
+    use mvgrasp_sim::objects::Family;
     use mvgrasp_sim::scene::Scenario;
     use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
@@ -656,7 +658,7 @@ mod eval {
     /// does; the count says which objects it would cut.
     #[test]
     fn episode_cameras_hold_every_object() {
-        let catalog = mvgrasp_sim::objects::Catalog::of(&mvgrasp_sim::objects::Family::ALL);
+        let catalog = mvgrasp_sim::objects::Catalog::of(&Family::ALL);
         let (mut held, mut redrawn) = (0, 0);
         for seed in 900_000..900_006 {
             let (scene, camera) = episode_scene(Scenario::Clutter, seed, &catalog).unwrap();
@@ -722,6 +724,7 @@ mod eval {
                     quality: 0.71234,
                     failure: None,
                     collision: None,
+                    label: Some(("positive", Family::Box)),
                 },
                 Attempt {
                     plan_ms: 9.0,
@@ -734,6 +737,7 @@ mod eval {
                         part: HandPart::Palm,
                         on_the_way_in: true,
                     }),
+                    label: None,
                 },
                 Attempt {
                     plan_ms: 8.0,
@@ -742,6 +746,7 @@ mod eval {
                     quality: 0.4,
                     failure: Some(Failure::SlipDuringLift),
                     collision: None,
+                    label: Some(("not antipodal", Family::Mug)),
                 },
             ],
             end: End::NoGraspAboveTau,
@@ -762,7 +767,11 @@ mod eval {
         assert_eq!(r["end"], "no grasp above tau");
         let a = r["attempts"].as_array().unwrap();
         assert_eq!(a.len(), 3);
-        assert_eq!(a[0], serde_json::json!(["ok", 0.712, 61.4, 90.0, 12.35]));
+        assert_eq!(
+            a[0],
+            serde_json::json!(["ok", 0.712, 61.4, 90.0, 12.35, "positive", "box"])
+        );
+        assert!(a[1][5].is_null() && a[1][6].is_null(), "{}", a[1]);
         assert_eq!(
             a[1][0],
             format!(
@@ -772,6 +781,7 @@ mod eval {
         );
         assert_eq!(a[1][3], 0.0);
         assert_eq!(a[2][0], Failure::SlipDuringLift.name());
+        assert_eq!((&a[2][5], &a[2][6]), (&"not antipodal".into(), &"mug".into()));
     }
 
     #[test]
@@ -939,6 +949,11 @@ mod eval {
             quality: 0.9,
             failure,
             collision: None,
+            label: None,
+        };
+        let tried = |failure, label, family| Attempt {
+            label: Some((label, family)),
+            ..attempt(failure)
         };
         let collided = |obstacle, part, on_the_way_in| Attempt {
             collision: Some(CollisionSite {
@@ -956,10 +971,10 @@ mod eval {
                 removed: 3,
                 fell_off: 0,
                 attempts: vec![
-                    attempt(None),
-                    attempt(Some(Failure::SlipDuringLift)),
-                    attempt(None),
-                    attempt(None),
+                    tried(None, "positive", Family::Cylinder),
+                    tried(Some(Failure::SlipDuringLift), "not antipodal", Family::Box),
+                    tried(None, "positive", Family::Box),
+                    tried(None, "not antipodal", Family::Cylinder),
                 ],
                 end: End::NoGraspAboveTau,
                 last_plan_ms: Some(30.0),
@@ -1013,6 +1028,17 @@ mod eval {
             table.contains("| packed | entropy:0.8 | 2 | 0.43 (3/7) | 0.33 (3/9) |"),
             "{table}"
         );
+        // The labels against physics: only the four physics trials count,
+        // families in catalogue order.
+        let labels = label_table(&episodes.iter().collect::<Vec<_>>());
+        for row in [
+            "| label | every family | box | cylinder |",
+            "| not antipodal | 0.50 (1/2) | 0.00 (0/1) | 1.00 (1/1) |",
+            "| positive | 1.00 (2/2) | 1.00 (1/1) | 1.00 (1/1) |",
+        ] {
+            assert!(labels.contains(row), "{row}\n{labels}");
+        }
+        assert_eq!(label_table(&[&episodes[1]]), "");
     }
 }
 
