@@ -39,6 +39,9 @@ pub struct Metrics {
     pub grasps_refused_for_collision: IntCounter,
     /// Grasps returned last because their pads reach past the image border.
     pub grasps_out_of_view: IntCounter,
+    /// Grasps turned about their approach to square them to the surfaces
+    /// their pads meet.
+    pub grasps_turned_square: IntCounter,
     /// Queued work dropped before inference, by reason.
     pub dropped: IntCounterVec,
     /// 1, labelled with the loaded model and backend.
@@ -103,6 +106,11 @@ impl Metrics {
                 "Grasps returned last because their pads reach past the image border",
             )
             .map_err(metric_error)?,
+            grasps_turned_square: IntCounter::new(
+                "grasps_turned_square_total",
+                "Grasps turned about their approach to square them to the surfaces their pads meet",
+            )
+            .map_err(metric_error)?,
             dropped: IntCounterVec::new(
                 Opts::new("dropped_views_total", "Queued views dropped before inference"),
                 &["reason"],
@@ -115,7 +123,7 @@ impl Metrics {
             .map_err(metric_error)?,
             registry,
         };
-        let collectors: [Box<dyn prometheus::core::Collector>; 13] = [
+        let collectors: [Box<dyn prometheus::core::Collector>; 14] = [
             Box::new(m.requests.clone()),
             Box::new(m.request_seconds.clone()),
             Box::new(m.stage_seconds.clone()),
@@ -127,6 +135,7 @@ impl Metrics {
             Box::new(m.grasps_per_request.clone()),
             Box::new(m.grasps_refused_for_collision.clone()),
             Box::new(m.grasps_out_of_view.clone()),
+            Box::new(m.grasps_turned_square.clone()),
             Box::new(m.dropped.clone()),
             Box::new(m.model_info.clone()),
         ];

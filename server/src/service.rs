@@ -172,6 +172,9 @@ impl PlannerState {
         self.metrics
             .grasps_out_of_view
             .inc_by(plan.ranked_last_out_of_view as u64);
+        self.metrics
+            .grasps_turned_square
+            .inc_by(plan.turned_square as u64);
     }
 
     fn observe_call(&self, method: &str, started: Instant, code: Code) {

@@ -83,6 +83,13 @@ pub struct HandConfig {
     /// camera's field of view after every grasp that stays inside (depth
     /// images only: [`hand_out_of_view`]).
     pub out_of_view_last: bool,
+    /// Turn a grasp about its approach axis, up to this far (degrees), to
+    /// square it to the surfaces its pads would meet as seen
+    /// ([`squaring_turn`]), when the turned grasp passes the check; 0: never.
+    pub square_turn_deg: f64,
+    /// How deep a slab of the object's points, from the point nearest each
+    /// pad, stands for the surface the pad meets (m).
+    pub patch_slab_m: f64,
 }
 
 impl Default for HandConfig {
@@ -101,6 +108,8 @@ impl Default for HandConfig {
             fit_opening: true,
             fit_clearance_m: 0.005,
             out_of_view_last: true,
+            square_turn_deg: 15.0,
+            patch_slab_m: 0.006,
         }
     }
 }
@@ -323,6 +332,80 @@ pub fn fit_opening(
     }
     let moved = world_from_grasp * nalgebra::Translation3::new(middle, 0.0, 0.0);
     Some((moved, width))
+}
+
+/// Fewest points a contact patch is fitted to.
+const PATCH_MIN_POINTS: usize = 6;
+
+/// How the surface each pad would meet runs across the pad, as `object`'s
+/// points show it: of the points between the pads (across the pad width,
+/// over the pad depth back from the fingertips, within the opening the
+/// executor uses), those within `hand.patch_slab_m` of the one nearest each
+/// pad, fitted with a plane `x = a y + b z + c` in the grasp frame; returns
+/// `a` (the surface's run along the closing direction per metre across
+/// it: 0 when square to the closing direction about the approach axis).
+/// `None` for a side with fewer than six such points (not seen). Index 0:
+/// the pad at -x.
+pub fn contact_slopes(
+    world_from_grasp: &Isometry3<f64>,
+    width_m: f64,
+    gripper: &Gripper,
+    hand: &HandConfig,
+    object: &Obstacle<'_>,
+) -> [Option<f64>; 2] {
+    let open = widen(width_m, hand.opening_clearance_m, gripper);
+    let between = GraspBox {
+        lo: Vector3::new(
+            -open / 2.0,
+            -gripper.finger_width_m / 2.0,
+            -gripper.finger_depth_m,
+        ),
+        hi: Vector3::new(open / 2.0, gripper.finger_width_m / 2.0, 0.0),
+    };
+    let Some(seen) = SeenFromGrasp::new(world_from_grasp, &[between], object) else {
+        return [None, None];
+    };
+    let (lo, hi) = (between.lo.map(|v| v as f32), between.hi.map(|v| v as f32));
+    let inside: Vec<Vector3<f64>> = seen
+        .points(object)
+        .filter(|g| (0..3).all(|k| g[k] >= lo[k] && g[k] <= hi[k]))
+        .map(|g| Vector3::new(f64::from(g[0]), f64::from(g[1]), f64::from(g[2])))
+        .collect();
+    [-1.0, 1.0].map(|side: f64| {
+        let nearest = inside
+            .iter()
+            .map(|p| side * p.x)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let patch = || {
+            inside
+                .iter()
+                .filter(|p| side * p.x >= nearest - hand.patch_slab_m)
+        };
+        if patch().count() < PATCH_MIN_POINTS {
+            return None;
+        }
+        let (mut normal, mut rhs) = (nalgebra::Matrix3::<f64>::zeros(), Vector3::zeros());
+        for p in patch() {
+            let v = Vector3::new(p.y, p.z, 1.0);
+            normal += v * v.transpose();
+            rhs += v * p.x;
+        }
+        Some((normal.try_inverse()? * rhs)[0])
+    })
+}
+
+/// The turn about the approach axis (rad) that squares the grasp to the
+/// surfaces its pads would meet ([`contact_slopes`]): `-atan` of their mean
+/// slope, when every seen side turns the same way and the turn lies
+/// within `hand.square_turn_deg`; `None` otherwise (nothing seen, sides that
+/// disagree, a turn under a degree, or one too large to trust).
+pub fn squaring_turn(slopes: [Option<f64>; 2], hand: &HandConfig) -> Option<f64> {
+    let seen: Vec<f64> = slopes.into_iter().flatten().collect();
+    if seen.is_empty() || !(seen.iter().all(|&a| a > 0.0) || seen.iter().all(|&a| a < 0.0)) {
+        return None;
+    }
+    let turn = -(seen.iter().sum::<f64>() / seen.len() as f64).atan();
+    (turn.abs() >= 1f64.to_radians() && turn.abs() <= hand.square_turn_deg.to_radians()).then_some(turn)
 }
 
 /// One object's points as seen from a grasp, only those near some boxes.
@@ -722,6 +805,106 @@ mod tests {
             &HandConfig::default(),
             &obstacle,
         )
+    }
+
+    /// [`contact_slopes`] on `points` (world frame) framed by the identity.
+    fn slopes(grasp: &Isometry3<f64>, width: f64, points: &[[f32; 3]]) -> [Option<f64>; 2] {
+        let identity = Isometry3::identity();
+        let (lo, hi) = (Vector3::repeat(-1.0), Vector3::repeat(1.0));
+        let obstacle = Obstacle {
+            world_from_object: &identity,
+            extent_min_m: &lo,
+            extent_max_m: &hi,
+            points,
+        };
+        contact_slopes(
+            grasp,
+            width,
+            &Gripper::default(),
+            &HandConfig::default(),
+            &obstacle,
+        )
+    }
+
+    /// The two 6 cm apart faces of a box, standing along world y, whose
+    /// normals are turned `deg` about world z from world x: points every
+    /// 2 mm over 4 x 5 cm of each face (z in 0.02-0.07).
+    fn turned_faces(deg: f64) -> Vec<[f32; 3]> {
+        let (sin, cos) = deg.to_radians().sin_cos();
+        let mut points = Vec::new();
+        for side in [-1.0, 1.0] {
+            for i in 0..=20 {
+                for k in 0..=25 {
+                    let along = -0.02 + 0.002 * f64::from(i);
+                    let z = 0.02 + 0.002 * f64::from(k);
+                    // 3 cm out along the normal, `along` across it.
+                    let (x, y) = (side * 0.03 * cos - along * sin, side * 0.03 * sin + along * cos);
+                    points.push([x as f32, y as f32, z as f32]);
+                }
+            }
+        }
+        points
+    }
+
+    #[test]
+    fn a_grasp_is_squared_to_faces_turned_off_its_closing_direction() {
+        let hand = HandConfig::default();
+        let grasp = top_down(0.0, 0.0, 0.03);
+        // Faces turned 10 degrees: both sides run the same way across the pads.
+        let faces = turned_faces(10.0);
+        let [Some(left), Some(right)] = slopes(&grasp, 0.06, &faces) else {
+            panic!("both faces are between the pads");
+        };
+        for a in [left, right] {
+            assert!((a.abs() - 10f64.to_radians().tan()).abs() < 0.01, "{a}");
+        }
+        assert!(left * right > 0.0);
+        let turn = squaring_turn([Some(left), Some(right)], &hand).expect("a turn");
+        assert!(
+            (turn.abs().to_degrees() - 10.0).abs() < 0.5,
+            "{}",
+            turn.to_degrees()
+        );
+        // Turned by it, the grasp closes square to the faces: nothing to turn.
+        let turned = grasp
+            * Isometry3::from_parts(
+                Translation3::identity(),
+                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn),
+            );
+        let again = slopes(&turned, 0.06, &faces);
+        assert!(
+            again.iter().all(|a| a.is_some_and(|a| a.abs() < 0.01)),
+            "{again:?}"
+        );
+        assert_eq!(squaring_turn(again, &hand), None);
+        // Square faces need no turn; faces turned 25 degrees are past the
+        // 15 degree limit (another grasp, not this one squared).
+        assert_eq!(
+            squaring_turn(slopes(&grasp, 0.06, &turned_faces(0.0)), &hand),
+            None
+        );
+        assert_eq!(
+            squaring_turn(slopes(&grasp, 0.06, &turned_faces(25.0)), &hand),
+            None
+        );
+    }
+
+    #[test]
+    fn squaring_needs_the_seen_sides_to_agree() {
+        let hand = HandConfig::default();
+        let a = 8f64.to_radians().tan();
+        // One side seen is enough; the turn undoes its slope.
+        let one = squaring_turn([None, Some(a)], &hand).unwrap();
+        assert!((one + 8f64.to_radians()).abs() < 1e-9, "{one}");
+        // A wedge (the sides run opposite ways) or nothing seen: no turn.
+        assert_eq!(squaring_turn([Some(-a), Some(a)], &hand), None);
+        assert_eq!(squaring_turn([None, None], &hand), None);
+        // Off when the limit is 0.
+        let off = HandConfig {
+            square_turn_deg: 0.0,
+            ..HandConfig::default()
+        };
+        assert_eq!(squaring_turn([Some(a), Some(a)], &off), None);
     }
 
     #[test]
