@@ -788,8 +788,9 @@ mod tests {
         ));
     }
 
-    /// [`fit_opening`] on `points` (world frame) framed by the identity.
-    fn fit(grasp: &Isometry3<f64>, width: f64, points: &[[f32; 3]]) -> Option<(Isometry3<f64>, f64)> {
+    /// `query` with the default gripper and hand on `points` (world frame)
+    /// as one object framed by the identity, its box the 2 m cube.
+    fn on_points<R>(points: &[[f32; 3]], query: impl FnOnce(&Gripper, &HandConfig, &Obstacle<'_>) -> R) -> R {
         let identity = Isometry3::identity();
         let (lo, hi) = (Vector3::repeat(-1.0), Vector3::repeat(1.0));
         let obstacle = Obstacle {
@@ -798,32 +799,21 @@ mod tests {
             extent_max_m: &hi,
             points,
         };
-        fit_opening(
-            grasp,
-            width,
-            &Gripper::default(),
-            &HandConfig::default(),
-            &obstacle,
-        )
+        query(&Gripper::default(), &HandConfig::default(), &obstacle)
+    }
+
+    /// [`fit_opening`] on `points` (world frame) framed by the identity.
+    fn fit(grasp: &Isometry3<f64>, width: f64, points: &[[f32; 3]]) -> Option<(Isometry3<f64>, f64)> {
+        on_points(points, |gripper, hand, obstacle| {
+            fit_opening(grasp, width, gripper, hand, obstacle)
+        })
     }
 
     /// [`contact_slopes`] on `points` (world frame) framed by the identity.
     fn slopes(grasp: &Isometry3<f64>, width: f64, points: &[[f32; 3]]) -> [Option<f64>; 2] {
-        let identity = Isometry3::identity();
-        let (lo, hi) = (Vector3::repeat(-1.0), Vector3::repeat(1.0));
-        let obstacle = Obstacle {
-            world_from_object: &identity,
-            extent_min_m: &lo,
-            extent_max_m: &hi,
-            points,
-        };
-        contact_slopes(
-            grasp,
-            width,
-            &Gripper::default(),
-            &HandConfig::default(),
-            &obstacle,
-        )
+        on_points(points, |gripper, hand, obstacle| {
+            contact_slopes(grasp, width, gripper, hand, obstacle)
+        })
     }
 
     /// The two 6 cm apart faces of a box, standing along world y, whose
