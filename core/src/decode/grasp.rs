@@ -74,7 +74,12 @@ pub struct Grasp {
     pub view: ViewAxis,
     /// Peak pixel `[u, v]` in that view.
     pub pixel: [u32; 2],
-    /// Image angle phi (rad), in [-pi/2, pi/2].
+    /// Image angle phi (rad), in [-pi/2, pi/2], as the network gave it at
+    /// the peak; the pose's closing direction may be turned from it about
+    /// the approach by up to [`HandConfig::square_turn_deg`] (the planner's
+    /// squaring).
+    ///
+    /// [`HandConfig::square_turn_deg`]: crate::decode::HandConfig::square_turn_deg
     pub angle_rad: f32,
 }
 
