@@ -309,11 +309,8 @@ pub fn fit_opening(
         ),
         hi: Vector3::new(gripper.max_width_m, half_pad_y, 0.0),
     };
-    let seen = SeenFromGrasp::new(world_from_grasp, &[paths], object)?;
-    let (lo, hi) = (paths.lo.map(|v| v as f32), paths.hi.map(|v| v as f32));
-    let mut across: Vec<f32> = seen
-        .points(object)
-        .filter(|g| (0..3).all(|k| g[k] >= lo[k] && g[k] <= hi[k]))
+    let mut across: Vec<f32> = points_inside(world_from_grasp, &paths, object)
+        .iter()
         .map(|g| g[0])
         .collect();
     if across.len() < hand.min_points.max(1) {
@@ -354,21 +351,9 @@ pub fn contact_slopes(
     object: &Obstacle<'_>,
 ) -> [Option<f64>; 2] {
     let open = widen(width_m, hand.opening_clearance_m, gripper);
-    let between = GraspBox {
-        lo: Vector3::new(
-            -open / 2.0,
-            -gripper.finger_width_m / 2.0,
-            -gripper.finger_depth_m,
-        ),
-        hi: Vector3::new(open / 2.0, gripper.finger_width_m / 2.0, 0.0),
-    };
-    let Some(seen) = SeenFromGrasp::new(world_from_grasp, &[between], object) else {
-        return [None, None];
-    };
-    let (lo, hi) = (between.lo.map(|v| v as f32), between.hi.map(|v| v as f32));
-    let inside: Vec<Vector3<f64>> = seen
-        .points(object)
-        .filter(|g| (0..3).all(|k| g[k] >= lo[k] && g[k] <= hi[k]))
+    let between = gap_box(open, 0.0, 0.0, gripper);
+    let inside: Vec<Vector3<f64>> = points_inside(world_from_grasp, &between, object)
+        .iter()
         .map(|g| Vector3::new(f64::from(g[0]), f64::from(g[1]), f64::from(g[2])))
         .collect();
     [-1.0, 1.0].map(|side: f64| {
@@ -406,6 +391,18 @@ pub fn squaring_turn(slopes: [Option<f64>; 2], hand: &HandConfig) -> Option<f64>
     }
     let turn = -(seen.iter().sum::<f64>() / seen.len() as f64).atan();
     (turn.abs() >= 1f64.to_radians() && turn.abs() <= hand.square_turn_deg.to_radians()).then_some(turn)
+}
+
+/// `object`'s points inside `b`, in the grasp frame (f32); none when `b`
+/// does not reach the object's box.
+fn points_inside(world_from_grasp: &Isometry3<f64>, b: &GraspBox, object: &Obstacle<'_>) -> Vec<[f32; 3]> {
+    let Some(seen) = SeenFromGrasp::new(world_from_grasp, &[*b], object) else {
+        return Vec::new();
+    };
+    let (lo, hi) = (b.lo.map(|v| v as f32), b.hi.map(|v| v as f32));
+    seen.points(object)
+        .filter(|g| (0..3).all(|k| g[k] >= lo[k] && g[k] <= hi[k]))
+        .collect()
 }
 
 /// One object's points as seen from a grasp, only those near some boxes.
