@@ -562,24 +562,20 @@ impl Planner {
                     );
                     squaring_turn(slopes, hand)
                 });
-                let g = match turn {
-                    Some(turn) => {
-                        let turned = g.world_from_grasp
-                            * Isometry3::from_parts(
-                                nalgebra::Translation3::identity(),
-                                nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn),
-                            );
-                        if hit(&turned, g.width_m).is_none() {
-                            turned_square += 1;
-                            Grasp {
-                                world_from_grasp: turned,
-                                ..g
-                            }
-                        } else {
-                            g
+                let turned = turn
+                    .map(|t| {
+                        g.world_from_grasp * nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), t)
+                    })
+                    .filter(|pose| hit(pose, g.width_m).is_none());
+                let g = match turned {
+                    Some(world_from_grasp) => {
+                        turned_square += 1;
+                        Grasp {
+                            world_from_grasp,
+                            ..g
                         }
                     }
-                    _ => g,
+                    None => g,
                 };
                 // Pads past the image border: maybe onto the part of the
                 // object never seen. Tried last, not refused: the object may
