@@ -62,10 +62,13 @@ def main():
         check("six objects", len(response.objects) == 6, f"{len(response.objects)} objects")
         check("grasps returned", len(response.grasps) > 0)
         qualities = [g.quality for g in response.grasps]
-        # Grasps reaching past the image border come last, sorted among themselves.
-        split = len(qualities) - response.ranked_last_out_of_view
+        # Grasps turned away from a neighbour, then grasps reaching past the
+        # image border, come last, each group sorted among itself.
+        last = len(qualities) - response.ranked_last_out_of_view
+        turned = last - response.ranked_after_turned_away
         check("sorted by quality",
-              all(part == sorted(part, reverse=True) for part in (qualities[:split], qualities[split:])),
+              all(part == sorted(part, reverse=True)
+                  for part in (qualities[:turned], qualities[turned:last], qualities[last:])),
               str(qualities))
         norms = [math.sqrt(sum(v * v for v in (g.pose.orientation.x, g.pose.orientation.y,
                                                  g.pose.orientation.z, g.pose.orientation.w)))

@@ -167,6 +167,7 @@ fn json_of_response(r: &pb::PlanGraspsResponse) -> serde_json::Value {
         "request_id": r.request_id,
         "model_version": r.model_version,
         "grasps": r.grasps.iter().map(json_of_grasp).collect::<Vec<_>>(),
+        "ranked_after_turned_away": r.ranked_after_turned_away,
         "ranked_last_out_of_view": r.ranked_last_out_of_view,
         "objects": r.objects.iter().map(|o| {
             let c = o.world_from_object.unwrap_or_default().position.unwrap_or_default();
@@ -186,16 +187,29 @@ fn json_of_response(r: &pb::PlanGraspsResponse) -> serde_json::Value {
     })
 }
 
+/// What the grasps at the end of the list are, in the order they come.
+fn ranked_last_note(turned_away: u32, out_of_view: u32) -> String {
+    let mut parts = Vec::new();
+    if turned_away > 0 {
+        parts.push(format!("{turned_away} turned away from a neighbour"));
+    }
+    if out_of_view > 0 {
+        parts.push(format!("{out_of_view} reaching past the image border"));
+    }
+    if parts.is_empty() {
+        String::new()
+    } else {
+        format!("; ranked last: {}", parts.join(", then "))
+    }
+}
+
 fn print_table(r: &pb::PlanGraspsResponse) {
     println!(
         "{} objects, {} grasps (model {}){}",
         r.objects.len(),
         r.grasps.len(),
         r.model_version,
-        match r.ranked_last_out_of_view {
-            0 => String::new(),
-            n => format!("; the last {n} reach past the image border"),
-        }
+        ranked_last_note(r.ranked_after_turned_away, r.ranked_last_out_of_view)
     );
     println!("rank  object  view   quality  width_mm        x        y        z   approach");
     for (rank, g) in r.grasps.iter().enumerate() {

@@ -8,7 +8,7 @@ use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::decode::{
     Collision, DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, Verdict, ViewPlacement, contact_slopes,
-    decode_view, fit_opening, hand_collision, hand_out_of_view, rank_grasps_vetted, squaring_turn,
+    decode_view, fit_opening, hand_collision, hand_out_of_view, rank_grasps_vetted, squaring_turn, turn_away,
 };
 use crate::error::{Error, Result};
 use crate::geometry::Workspace;
@@ -195,6 +195,16 @@ pub struct Refusals {
     pub neighbour: usize,
 }
 
+/// Why a grasp is ranked after those that passed the hand check as
+/// planned, in the order such grasps come.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum RankedLast {
+    /// Turned away from a neighbour ([`HandConfig::neighbour_turns_deg`]).
+    TurnedAway,
+    /// Pads past the image border ([`HandConfig::out_of_view_last`]).
+    OutOfView,
+}
+
 /// The answer for one frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plan {
@@ -205,6 +215,11 @@ pub struct Plan {
     pub refused_for_collision: usize,
     /// The same by what the hand would have hit.
     pub refusals: Refusals,
+    /// Grasps after every grasp that passed the hand check as planned
+    /// because they were turned about their approach away from a neighbour
+    /// the hand would have hit ([`HandConfig::neighbour_turns_deg`]); they
+    /// come before the `ranked_last_out_of_view`.
+    pub ranked_after_turned_away: usize,
     /// Grasps at the end of `grasps` because their pads reach past the
     /// image border ([`HandConfig::out_of_view_last`]).
     pub ranked_last_out_of_view: usize,
@@ -523,8 +538,31 @@ impl Planner {
                     }
                     Verdict::Refuse
                 };
-                let g = match hit(&g.world_from_grasp, g.width_m) {
-                    None => g,
+                // A grasp whose hand would hit a neighbour: turned away from
+                // it if a turn passes, ranked after the grasps as planned.
+                let turn_away_from = |c: Collision, g: &Grasp| {
+                    match c {
+                        Collision::Object(i) if Some(i) != own => own.and_then(|j| {
+                            turn_away(
+                                &g.world_from_grasp,
+                                g.width_m,
+                                &options.gripper,
+                                hand,
+                                &obstacles[j],
+                                |pose, width| hit(pose, width).is_none(),
+                            )
+                        }),
+                        _ => None,
+                    }
+                    .map(|(world_from_grasp, width_m)| Grasp {
+                        world_from_grasp,
+                        width_m,
+                        ..g.clone()
+                    })
+                    .ok_or(c)
+                };
+                let (g, turned_away) = match hit(&g.world_from_grasp, g.width_m) {
+                    None => (g, false),
                     // Pads on its own object: open to what was seen of it, and check again.
                     Some(first @ Collision::Object(i)) if hand.fit_opening && Some(i) == own => {
                         let Some((pose, width)) = fit_opening(
@@ -536,16 +574,25 @@ impl Planner {
                         ) else {
                             return refuse(first);
                         };
-                        if let Some(again) = hit(&pose, width) {
-                            return refuse(again);
-                        }
-                        Grasp {
-                            world_from_grasp: pose,
-                            width_m: width,
-                            ..g
+                        match hit(&pose, width) {
+                            None => (
+                                Grasp {
+                                    world_from_grasp: pose,
+                                    width_m: width,
+                                    ..g
+                                },
+                                false,
+                            ),
+                            Some(again) => match turn_away_from(again, &g) {
+                                Ok(turned) => (turned, true),
+                                Err(c) => return refuse(c),
+                            },
                         }
                     }
-                    Some(c) => return refuse(c),
+                    Some(c) => match turn_away_from(c, &g) {
+                        Ok(turned) => (turned, true),
+                        Err(c) => return refuse(c),
+                    },
                 };
                 // Square the grasp to the surfaces its pads would meet, as
                 // seen, when the turned grasp passes the check too: of the
@@ -586,12 +633,15 @@ impl Planner {
                         && hand_out_of_view(&g.world_from_grasp, g.width_m, &options.gripper, hand, v)
                 });
                 if unseen {
-                    Verdict::Defer(g)
+                    Verdict::Defer(g, RankedLast::OutOfView)
+                } else if turned_away {
+                    Verdict::Defer(g, RankedLast::TurnedAway)
                 } else {
                     Verdict::Accept(g)
                 }
             },
         );
+        let count = |why: RankedLast| ranked.deferred.iter().filter(|&&d| d == why).count();
         let mut debug_views = Vec::new();
         if options.keep_views {
             let per_view = 4 * maps.size_px * maps.size_px;
@@ -614,7 +664,8 @@ impl Planner {
             grasps: ranked.grasps,
             refused_for_collision: ranked.refused,
             refusals,
-            ranked_last_out_of_view: ranked.deferred,
+            ranked_after_turned_away: count(RankedLast::TurnedAway),
+            ranked_last_out_of_view: count(RankedLast::OutOfView),
             turned_square,
             objects: objects.into_iter().map(|o| o.object).collect(),
             table,

@@ -295,6 +295,7 @@ pub fn response_of(
         debug_views: plan.debug_views.iter().map(debug_message).collect(),
         request_id: request_id.to_owned(),
         ranked_last_out_of_view: plan.ranked_last_out_of_view as u32,
+        ranked_after_turned_away: plan.ranked_after_turned_away as u32,
     }
 }
 

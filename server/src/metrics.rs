@@ -42,6 +42,9 @@ pub struct Metrics {
     /// Grasps turned about their approach to square them to the surfaces
     /// their pads meet.
     pub grasps_turned_square: IntCounter,
+    /// Grasps returned after those as planned because they were turned
+    /// about their approach away from a neighbour the hand would have hit.
+    pub grasps_turned_away: IntCounter,
     /// Queued work dropped before inference, by reason.
     pub dropped: IntCounterVec,
     /// 1, labelled with the loaded model and backend.
@@ -111,6 +114,11 @@ impl Metrics {
                 "Grasps turned about their approach to square them to the surfaces their pads meet",
             )
             .map_err(metric_error)?,
+            grasps_turned_away: IntCounter::new(
+                "grasps_turned_away_total",
+                "Grasps returned after those as planned, turned about their approach away from a neighbour",
+            )
+            .map_err(metric_error)?,
             dropped: IntCounterVec::new(
                 Opts::new("dropped_views_total", "Queued views dropped before inference"),
                 &["reason"],
@@ -123,7 +131,7 @@ impl Metrics {
             .map_err(metric_error)?,
             registry,
         };
-        let collectors: [Box<dyn prometheus::core::Collector>; 14] = [
+        let collectors: [Box<dyn prometheus::core::Collector>; 15] = [
             Box::new(m.requests.clone()),
             Box::new(m.request_seconds.clone()),
             Box::new(m.stage_seconds.clone()),
@@ -136,6 +144,7 @@ impl Metrics {
             Box::new(m.grasps_refused_for_collision.clone()),
             Box::new(m.grasps_out_of_view.clone()),
             Box::new(m.grasps_turned_square.clone()),
+            Box::new(m.grasps_turned_away.clone()),
             Box::new(m.dropped.clone()),
             Box::new(m.model_info.clone()),
         ];

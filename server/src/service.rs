@@ -175,6 +175,9 @@ impl PlannerState {
         self.metrics
             .grasps_turned_square
             .inc_by(plan.turned_square as u64);
+        self.metrics
+            .grasps_turned_away
+            .inc_by(plan.ranked_after_turned_away as u64);
     }
 
     fn observe_call(&self, method: &str, started: Instant, code: Code) {

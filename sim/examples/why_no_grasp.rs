@@ -2,14 +2,18 @@
 //! one scenario and setting (seen families, shipped model, in-process), and
 //! at each such end the planner's view of the last frame: the objects still
 //! visible (their family, matched by position to the scene's start), the
-//! objects detected and their extents, how many candidates at tau the hand
+//! objects detected and their extents, how many detections hold two or more
+//! objects (merged) and how many objects are spread over two or more
+//! detections (split; `segmentation_recall`'s measures), how many candidates at tau the hand
 //! check refused (by what the hand would have hit: the table, the grasp's
 //! own object, a neighbour), and, planned again at tau 0, how many grasps
 //! were kept and the best quality any reached. (Whether those grasps would
 //! have held: run the same setting at tau 0.)
 //!
-//!     cargo run --release -p mvgrasp-sim --example why_no_grasp [SCENARIO] [SETTING] [EPISODES] [SEED] [MODEL] [FAMILIES]
+//!     cargo run --release -p mvgrasp-sim --example why_no_grasp [SCENARIO] [SETTING] [EPISODES] [SEED] [MODEL] [FAMILIES] [PNG_DIR]
 //!
+//! With `PNG_DIR`, each such last frame is drawn there as `SEED.png`: the
+//! renderer's labels | the planner's detections.
 //! Defaults: packed, all:0.1, 16 episodes from seed 900000 (the results/
 //! scenes), models/mvgrasp.onnx, the 8 seen families. Each attempt is
 //! listed with its outcome, its approach's angle below the horizontal and
@@ -24,6 +28,8 @@ use mvgrasp_sim::scene::Scenario;
 struct Diagnosing<'a> {
     inner: InProcess<'a>,
     last: String,
+    seed: u64,
+    png_dir: Option<&'a std::path::Path>,
     left: Vec<[f64; 2]>,
 }
 
@@ -68,6 +74,16 @@ impl GraspSource for Diagnosing<'_> {
                 })
                 .collect();
             let best_q = q.grasps.iter().map(|g| g.quality).fold(0.0f32, f32::max);
+            let seg = self
+                .inner
+                .planner
+                .segment(&input)
+                .map_err(|e| mvgrasp_sim::Error::Scene(format!("planner: {e}")))?;
+            let (merged, split) = merges(frame, &seg);
+            if let Some(dir) = self.png_dir {
+                draw(&dir.join(format!("{}.png", self.seed)), frame, &seg)
+                    .map_err(|e| mvgrasp_sim::Error::Scene(format!("drawing: {e}")))?;
+            }
 
             let sizes: Vec<String> = q
                 .objects
@@ -83,7 +99,7 @@ impl GraspSource for Diagnosing<'_> {
                 })
                 .collect();
             self.last = format!(
-                "visible {} detected {} [{}] refused@tau {} (table {} own {} neighbour {}) kept@0 {} refused@0 {} (table {} own {} neighbour {}) best q {:.3}",
+                "visible {} detected {} (merged {merged}, objects split {split}) [{}] refused@tau {} (table {} own {} neighbour {}) kept@0 {} refused@0 {} (table {} own {} neighbour {}) best q {:.3}",
                 labels.len(),
                 p.objects.len(),
                 sizes.join(" "),
@@ -101,6 +117,83 @@ impl GraspSource for Diagnosing<'_> {
         }
         Ok(ranked)
     }
+}
+
+/// The renderer's labels | the planner's detections, side by side.
+fn draw(path: &std::path::Path, frame: &Frame, seg: &mvgrasp_core::Segmentation) -> anyhow::Result<()> {
+    let colour = |i: usize| {
+        let h = (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        [
+            (h >> 56) as u8 | 0x50,
+            (h >> 48) as u8 | 0x50,
+            (h >> 40) as u8 | 0x50,
+        ]
+    };
+    let (w, h) = (frame.camera.width as usize, frame.camera.height as usize);
+    let mut image = vec![0u8; 3 * w * h * 2];
+    for (i, (&d, &label)) in frame.depth_mm.iter().zip(&frame.labels).enumerate() {
+        let grey = (255.0 * (1.4 - f64::from(d) / 1000.0).clamp(0.0, 1.0)) as u8 * u8::from(d > 0);
+        let row = (i / w) * 2 * w + i % w;
+        let c = if label >= 2 {
+            colour(usize::from(label))
+        } else {
+            [grey; 3]
+        };
+        image[3 * row..][..3].copy_from_slice(&c);
+        image[3 * (row + w)..][..3].copy_from_slice(&[grey; 3]);
+    }
+    for (d, c) in seg.clusters.iter().enumerate() {
+        for &p in c {
+            let i = seg.pixels[p as usize] as usize;
+            let row = (i / w) * 2 * w + i % w;
+            image[3 * (row + w)..][..3].copy_from_slice(&colour(100 + d));
+        }
+    }
+    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let mut encoder = png::Encoder::new(file, 2 * w as u32, h as u32);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.write_header()?.write_image_data(&image)?;
+    Ok(())
+}
+
+/// Detections holding two or more objects (each at least 20% of its
+/// pixels), and objects spread over two or more detections (each holding at
+/// least 20% of the object's pixels): `segmentation_recall`'s measures.
+fn merges(frame: &Frame, seg: &mvgrasp_core::Segmentation) -> (usize, usize) {
+    let mut overlap: std::collections::HashMap<(usize, u16), usize> = std::collections::HashMap::new();
+    let mut of_label: std::collections::HashMap<u16, usize> = std::collections::HashMap::new();
+    let mut of_detection = vec![0usize; seg.clusters.len()];
+    for (d, c) in seg.clusters.iter().enumerate() {
+        for &i in c {
+            let label = frame.labels[seg.pixels[i as usize] as usize];
+            if label >= 2 {
+                *overlap.entry((d, label)).or_default() += 1;
+                *of_label.entry(label).or_default() += 1;
+                of_detection[d] += 1;
+            }
+        }
+    }
+    let merged = (0..seg.clusters.len())
+        .filter(|&d| {
+            overlap
+                .iter()
+                .filter(|((e, _), k)| *e == d && **k * 5 >= of_detection[d])
+                .count()
+                >= 2
+        })
+        .count();
+    let split = of_label
+        .iter()
+        .filter(|&(&l, &n)| {
+            overlap
+                .iter()
+                .filter(|((_, m), k)| *m == l && **k * 5 >= n)
+                .count()
+                >= 2
+        })
+        .count();
+    (merged, split)
 }
 
 fn main() -> anyhow::Result<()> {
@@ -123,6 +216,10 @@ fn main() -> anyhow::Result<()> {
     .split(',')
     .map(|f| Family::parse(f).ok_or_else(|| anyhow::anyhow!("unknown family {f}")))
     .collect::<anyhow::Result<_>>()?;
+    let png_dir = args.get(7).map(std::path::PathBuf::from);
+    if let Some(dir) = &png_dir {
+        std::fs::create_dir_all(dir)?;
+    }
     let config = EpisodeConfig {
         catalog: Catalog::of(&families),
         ..EpisodeConfig::default()
@@ -134,6 +231,8 @@ fn main() -> anyhow::Result<()> {
                 net: loaded.net.as_mut(),
             },
             last: String::new(),
+            seed,
+            png_dir: png_dir.as_deref(),
             left: Vec::new(),
         };
         let e = run_episode(scenario, seed, &setting, &mut source, &config)?;

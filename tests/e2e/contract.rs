@@ -23,12 +23,15 @@ fn isometry(p: &pb::Pose) -> (Isometry3<f64>, f64) {
     )
 }
 
-/// Best first, those reaching past the image border after the rest.
+/// Best first; those turned away from a neighbour after the rest, then
+/// those reaching past the image border.
 fn check_ranked(response: &pb::PlanGraspsResponse) {
-    let deferred = response.ranked_last_out_of_view as usize;
-    assert!(deferred <= response.grasps.len());
-    let (in_view, past) = response.grasps.split_at(response.grasps.len() - deferred);
-    for part in [in_view, past] {
+    let past = response.ranked_last_out_of_view as usize;
+    let turned = response.ranked_after_turned_away as usize;
+    assert!(past + turned <= response.grasps.len());
+    let (rest, past) = response.grasps.split_at(response.grasps.len() - past);
+    let (as_planned, turned) = rest.split_at(rest.len() - turned);
+    for part in [as_planned, turned, past] {
         for pair in part.windows(2) {
             assert!(pair[0].quality >= pair[1].quality, "grasps not sorted by quality");
         }

@@ -78,6 +78,7 @@ async fn health_reflection_and_metrics() {
     assert!(metrics.contains("mvgrasp_grasps_refused_for_collision_total "));
     assert!(metrics.contains("mvgrasp_grasps_out_of_view_total "));
     assert!(metrics.contains("mvgrasp_grasps_turned_square_total "));
+    assert!(metrics.contains("mvgrasp_grasps_turned_away_total "));
     assert_eq!(sample(&metrics, "mvgrasp_batch_views_sum"), 18.0);
     assert!(
         sample(

@@ -32,6 +32,14 @@
 //! checked again, neighbours and table included. The network places the
 //! grasp; the points say how far to open.
 //!
+//! A grasp refused because the hand would hit a *neighbour* gets another
+//! kind of chance ([`turn_away`]): turned about its approach axis by each of
+//! `HandConfig::neighbour_turns_deg` in turn, its opening re-fitted to its
+//! object's points, the first turn that passes the check is kept. The
+//! network never scored that angle, so the pipeline ranks such grasps after
+//! every grasp that passed as planned: they are tried only when nothing
+//! else is left (in piles, where touching objects refuse most grasps).
+//!
 //! What the camera never saw is not known to be free: an object cut by the
 //! image border looks narrower than it is, and a pad reaching past the
 //! border may land on the part outside. [`hand_out_of_view`] finds such
@@ -90,6 +98,9 @@ pub struct HandConfig {
     /// How deep a slab of the object's points, from the point nearest each
     /// pad, stands for the surface the pad meets (m).
     pub patch_slab_m: f64,
+    /// Turns about the approach axis (degrees, tried in order) for a grasp
+    /// the check refused for a neighbour ([`turn_away`]); empty: none.
+    pub neighbour_turns_deg: Vec<f64>,
 }
 
 impl Default for HandConfig {
@@ -110,6 +121,8 @@ impl Default for HandConfig {
             out_of_view_last: true,
             square_turn_deg: 15.0,
             patch_slab_m: 0.006,
+            // Smallest turns first, either way, up to a quarter turn.
+            neighbour_turns_deg: vec![20.0, -20.0, 45.0, -45.0, 70.0, -70.0, 90.0],
         }
     }
 }
@@ -329,6 +342,27 @@ pub fn fit_opening(
     }
     let moved = world_from_grasp * nalgebra::Translation3::new(middle, 0.0, 0.0);
     Some((moved, width))
+}
+
+/// The grasp turned about its approach axis away from a neighbour: for
+/// each of `hand.neighbour_turns_deg` in order, the turned grasp, its
+/// opening re-fitted to `object`'s points ([`fit_opening`]; as it was
+/// where they give no fit), the first that `passes` (the hand check).
+/// Returns the new pose and opening; `None` when no turn passes.
+pub fn turn_away(
+    world_from_grasp: &Isometry3<f64>,
+    width_m: f64,
+    gripper: &Gripper,
+    hand: &HandConfig,
+    object: &Obstacle<'_>,
+    mut passes: impl FnMut(&Isometry3<f64>, f64) -> bool,
+) -> Option<(Isometry3<f64>, f64)> {
+    hand.neighbour_turns_deg.iter().find_map(|deg| {
+        let turned = world_from_grasp
+            * nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), deg.to_radians());
+        let (pose, width) = fit_opening(&turned, width_m, gripper, hand, object).unwrap_or((turned, width_m));
+        passes(&pose, width).then_some((pose, width))
+    })
 }
 
 /// Fewest points a contact patch is fitted to.
@@ -933,6 +967,58 @@ mod tests {
             )
             .is_none()
         );
+    }
+
+    #[test]
+    fn a_grasp_into_a_neighbour_turns_away_from_it() {
+        let (hand, table, gripper) = (HandConfig::default(), table_at(0.0), Gripper::default());
+        let identity = Isometry3::identity();
+        let framed =
+            |points: Vec<[f32; 3]>| -> Framed { (points, Vector3::repeat(-1.0), Vector3::repeat(1.0)) };
+        // A 4 x 6 cm box (6 cm along y), a neighbour 1.5 cm off its side
+        // along x: closing along x, 4 cm wide, the right pad comes down on it.
+        let own = framed(block([-0.02, -0.03, 0.0], [0.02, 0.03, 0.06]));
+        let neighbour = framed(block([0.035, -0.04, 0.0], [0.07, 0.04, 0.06]));
+        let objects = [obstacle_of(&identity, &own), obstacle_of(&identity, &neighbour)];
+        let grasp = top_down(0.0, 0.0, 0.04);
+        let hit = |pose: &Isometry3<f64>, width: f64| {
+            hand_collision(pose, width, &gripper, &hand, &table, &objects, Some(0))
+        };
+        assert_eq!(hit(&grasp, 0.04), Some(Collision::Object(1)));
+        let (pose, width) = turn_away(&grasp, 0.04, &gripper, &hand, &objects[0], |p, w| {
+            hit(p, w).is_none()
+        })
+        .expect("a turn");
+        assert_eq!(hit(&pose, width), None);
+        // The same approach and fingertips' height; the closing direction
+        // turned by the first turn of the list that passes.
+        let approach = |p: &Isometry3<f64>| p.rotation * Vector3::z();
+        assert!((approach(&pose) - approach(&grasp)).norm() < 1e-12);
+        assert!((pose.translation.z - grasp.translation.z).abs() < 1e-12);
+        let turned = |deg: f64| grasp * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), deg.to_radians());
+        let first = hand
+            .neighbour_turns_deg
+            .iter()
+            .position(|&deg| {
+                let c = turned(deg).rotation * Vector3::x();
+                (pose.rotation * Vector3::x()).dot(&c) > 1.0 - 1e-9
+            })
+            .expect("one of the turns");
+        assert!(hand.neighbour_turns_deg[first].abs() >= 45.0, "{first}");
+        for &deg in &hand.neighbour_turns_deg[..first] {
+            let fitted =
+                fit_opening(&turned(deg), 0.04, &gripper, &hand, &objects[0]).unwrap_or((turned(deg), 0.04));
+            assert!(hit(&fitted.0, fitted.1).is_some(), "{deg} passes too");
+        }
+        // Re-fitted to the box across its turned extent, never narrower.
+        assert!(width >= 0.04, "{width}");
+        // No turns, or none that passes: none.
+        let still = HandConfig {
+            neighbour_turns_deg: Vec::new(),
+            ..hand.clone()
+        };
+        assert!(turn_away(&grasp, 0.04, &gripper, &still, &objects[0], |_, _| true).is_none());
+        assert!(turn_away(&grasp, 0.04, &gripper, &hand, &objects[0], |_, _| false).is_none());
     }
 
     #[test]

@@ -7,7 +7,7 @@ mod rank;
 
 pub use collision::{
     Collision, HandConfig, Obstacle, contact_slopes, fit_opening, hand_collides, hand_collision,
-    hand_out_of_view, squaring_turn,
+    hand_out_of_view, squaring_turn, turn_away,
 };
 pub use grasp::{DecodeConfig, Grasp, ViewPlacement, decode_view, grasp_at};
 pub use peaks::{NEGLIGIBLE_QUALITY, find_peaks, smooth, smoothed_peaks};

@@ -16,40 +16,41 @@ pub struct RankConfig {
 /// Sorts best first (quality, then object id, view, pixel row and column:
 /// a total order, so equal inputs always rank the same) and applies the limits.
 pub fn rank_grasps(grasps: Vec<Grasp>, config: &RankConfig) -> Vec<Grasp> {
-    rank_grasps_vetted(grasps, config, Verdict::Accept).grasps
+    rank_grasps_vetted::<()>(grasps, config, Verdict::Accept).grasps
 }
 
-/// What a check says of one grasp.
+/// What a check says of one grasp. `T` says why a grasp is deferred; the
+/// deferred are kept in `T`'s order, each kind in rank order.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Verdict {
+pub enum Verdict<T = ()> {
     /// Keep it (or a repaired grasp in its place) at its rank.
     Accept(Grasp),
-    /// Keep it, but after every accepted grasp (in rank order among the
-    /// deferred), if room is left.
-    Defer(Grasp),
+    /// Keep it, but after every accepted grasp, if room is left.
+    Defer(Grasp, T),
     /// Drop it.
     Refuse,
 }
 
 /// The ranked list and what the check did to get it.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct Ranked {
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ranked<T = ()> {
     /// Best first: the accepted, then the deferred.
     pub grasps: Vec<Grasp>,
     /// Grasps refused.
     pub refused: usize,
-    /// Deferred grasps in `grasps` (at its end).
-    pub deferred: usize,
+    /// Why each deferred grasp in `grasps` (at its end, in this order) was
+    /// deferred.
+    pub deferred: Vec<T>,
 }
 
 /// [`rank_grasps`], with `vet`'s verdict on each grasp. `vet` is asked in
 /// rank order, and only while a grasp could still make the list, so a
 /// costly check runs on few grasps.
-pub fn rank_grasps_vetted(
+pub fn rank_grasps_vetted<T: Ord>(
     mut grasps: Vec<Grasp>,
     config: &RankConfig,
-    mut vet: impl FnMut(Grasp) -> Verdict,
-) -> Ranked {
+    mut vet: impl FnMut(Grasp) -> Verdict<T>,
+) -> Ranked<T> {
     grasps.retain(|g| g.quality >= config.min_quality);
     grasps.sort_by(|a, b| {
         b.quality
@@ -77,12 +78,14 @@ pub fn rank_grasps_vetted(
                 *per_object.entry(g.object_id).or_insert(0) += 1;
                 kept.push(g);
             }
-            Verdict::Defer(g) => deferred.push(g),
+            Verdict::Defer(g, why) => deferred.push((why, g)),
             Verdict::Refuse => refused += 1,
         }
     }
-    let accepted = kept.len();
-    for g in deferred {
+    // Stable: each kind keeps its rank order.
+    deferred.sort_by(|a, b| a.0.cmp(&b.0));
+    let mut kept_deferred = Vec::new();
+    for (why, g) in deferred {
         if kept.len() == config.max_grasps {
             break;
         }
@@ -90,12 +93,13 @@ pub fn rank_grasps_vetted(
         if *n < config.max_per_object {
             *n += 1;
             kept.push(g);
+            kept_deferred.push(why);
         }
     }
     Ranked {
-        deferred: kept.len() - accepted,
         grasps: kept,
         refused,
+        deferred: kept_deferred,
     }
 }
 
@@ -159,7 +163,7 @@ mod tests {
             max_grasps: 3,
         };
         let mut asked = Vec::new();
-        let ranked = rank_grasps_vetted(grasps, &config, |mut g| {
+        let ranked = rank_grasps_vetted::<()>(grasps, &config, |mut g| {
             asked.push(g.pixel[0]);
             // Refuse pixel 2; widen pixel 3 (a repair keeps its rank).
             if g.pixel[0] == 3 {
@@ -173,38 +177,45 @@ mod tests {
         });
         let keys: Vec<(u32, f64)> = ranked.grasps.iter().map(|g| (g.pixel[0], g.width_m)).collect();
         assert_eq!(keys, vec![(1, 0.05), (3, 0.08), (4, 0.05)]);
-        assert_eq!((ranked.refused, ranked.deferred), (1, 0));
+        assert_eq!((ranked.refused, ranked.deferred.len()), (1, 0));
         // Each grasp was asked about once, in rank order.
         assert_eq!(asked, vec![1, 2, 3, 4]);
     }
 
     #[test]
-    fn deferred_grasps_come_after_every_accepted_one_within_the_limits() {
+    fn deferred_grasps_come_after_every_accepted_one_by_kind_within_the_limits() {
         let grasps = vec![
             grasp(1, 0.9, 1),
             grasp(1, 0.8, 2),
             grasp(2, 0.7, 3),
             grasp(1, 0.6, 4),
             grasp(3, 0.5, 5),
+            grasp(4, 0.4, 6),
         ];
         let config = RankConfig {
             min_quality: 0.0,
             max_per_object: 2,
-            max_grasps: 4,
+            max_grasps: 5,
         };
-        // Pixels 1 and 3 deferred: the rest keep their order, then 1, 3.
-        let defer = |g: Grasp| {
-            if [1, 3].contains(&g.pixel[0]) {
-                Verdict::Defer(g)
-            } else {
-                Verdict::Accept(g)
-            }
+        // Pixels 1 and 3 deferred as kind 1, pixel 6 as kind 0: the rest
+        // keep their order, then 6 (kind 0 first), then 1 and 3.
+        let defer = |g: Grasp| match g.pixel[0] {
+            1 | 3 => Verdict::Defer(g, 1u8),
+            6 => Verdict::Defer(g, 0u8),
+            _ => Verdict::Accept(g),
         };
         let ranked = rank_grasps_vetted(grasps.clone(), &config, defer);
         let keys: Vec<u32> = ranked.grasps.iter().map(|g| g.pixel[0]).collect();
         // Object 1 has two accepted grasps (2 and 4): its deferred 1 finds no room.
-        assert_eq!(keys, vec![2, 4, 5, 3]);
-        assert_eq!((ranked.refused, ranked.deferred), (0, 1));
+        assert_eq!(keys, vec![2, 4, 5, 6, 3]);
+        assert_eq!((ranked.refused, ranked.deferred), (0, vec![0, 1]));
+        let four = RankConfig {
+            max_grasps: 4,
+            ..config
+        };
+        let ranked = rank_grasps_vetted(grasps.clone(), &four, defer);
+        assert_eq!(ranked.grasps.last().map(|g| g.pixel[0]), Some(6));
+        assert_eq!(ranked.deferred, vec![0]);
         // With the list full of accepted grasps the deferred never show.
         let three = RankConfig {
             max_grasps: 3,
@@ -213,6 +224,6 @@ mod tests {
         let ranked = rank_grasps_vetted(grasps, &three, defer);
         let keys: Vec<u32> = ranked.grasps.iter().map(|g| g.pixel[0]).collect();
         assert_eq!(keys, vec![2, 4, 5]);
-        assert_eq!(ranked.deferred, 0);
+        assert!(ranked.deferred.is_empty());
     }
 }

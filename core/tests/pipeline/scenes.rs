@@ -237,7 +237,7 @@ fn the_hand_check_refuses_grasps_between_close_neighbours() {
         &scene,
         &camera,
         &mut MomentsNet::default(),
-        [hand_without_fit(), hand_off()],
+        [hand_without_repairs(), hand_off()],
     );
     assert_eq!(unchecked.refused_for_collision, 0);
     assert!(
@@ -282,7 +282,7 @@ fn openings_too_narrow_for_the_object_are_re_fitted() {
         &scene,
         &camera,
         &mut net,
-        [hand_without_fit(), HandConfig::default(), hand_off()],
+        [hand_without_repairs(), HandConfig::default(), hand_off()],
     );
     assert!(
         refused.refused_for_collision > 0,
@@ -410,10 +410,78 @@ fn grasps_reaching_past_the_image_border_are_ranked_last() {
     assert_eq!(bounded.ranked_last_out_of_view, 0);
 }
 
-/// The hand check with its opening re-fit off.
-fn hand_without_fit() -> HandConfig {
+/// A grasp whose hand would hit a neighbour as planned is turned about its
+/// approach until it no longer does, and ranked after every grasp that
+/// passed as planned; without turns it is refused.
+#[test]
+fn grasps_into_a_neighbour_are_turned_away_and_ranked_after() {
+    // A 6 x 4 cm box, 10 cm tall; a 9 cm tall neighbour 1.5 cm off its
+    // 4 cm side: closing across the 4 cm, the pads come down beside the
+    // box onto the neighbour's top edge.
+    let scene = Scene {
+        table_z: 0.0,
+        table_half: [0.6, 0.4],
+        shapes: vec![
+            Shape::standing_box(0.0, 0.0, 0.0, 0.0, [0.06, 0.04, 0.10]),
+            Shape::standing_box(0.0, 0.0, 0.055, 0.0, [0.06, 0.04, 0.09]),
+        ],
+    };
+    let camera = Camera::orbit(Vector3::zeros(), 0.8, 50.0, -90.0);
+    let hand = HandConfig::default();
+    let no_turns = HandConfig {
+        neighbour_turns_deg: Vec::new(),
+        ..hand.clone()
+    };
+    let [refused, turned, unchecked] = plans_with_hands(
+        &scene,
+        &camera,
+        &mut MomentsNet::default(),
+        [no_turns, hand.clone(), hand_off()],
+    );
+    assert_eq!(refused.objects.len(), 2, "the two boxes apart");
+    assert!(refused.refusals.neighbour > 0, "{:?}", refused.refusals);
+    assert_eq!(refused.ranked_after_turned_away, 0);
+    let n = turned.ranked_after_turned_away;
+    assert!(n > 0, "no grasp turned away: {:?}", turned.refusals);
+    // Every turned grasp is one the check refused without turns.
+    assert_eq!(turned.refused_for_collision + n, refused.refused_for_collision);
+    assert_eq!(turned.refusals.neighbour + n, refused.refusals.neighbour);
+    // The grasps as planned are the same; the turned come after them.
+    let first_turned = turned.grasps.len() - n - turned.ranked_last_out_of_view;
+    assert_eq!(turned.grasps[..first_turned], refused.grasps[..first_turned]);
+    for g in &turned.grasps[first_turned..first_turned + n] {
+        let original = unchecked
+            .grasps
+            .iter()
+            .find(|u| u.object_id == g.object_id && u.view == g.view && u.pixel == g.pixel)
+            .expect("a turn of a decoded grasp");
+        assert!(!refused.grasps.contains(original));
+        assert_eq!(g.quality, original.quality);
+        // The same approach; the closing direction turned by one of the
+        // turns (the squaring may add up to its own limit).
+        assert!((approach_of(g) - approach_of(original)).norm() < 1e-9);
+        let closing = |p: &mvgrasp_core::Grasp| p.world_from_grasp.rotation * Vector3::x();
+        let turn = closing(g)
+            .dot(&closing(original))
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees();
+        assert!(
+            hand.neighbour_turns_deg
+                .iter()
+                .any(|t| (turn - t.abs()).abs() <= hand.square_turn_deg + 1e-6),
+            "turned {turn} degrees"
+        );
+        assert!(turn >= 20.0 - hand.square_turn_deg, "turned {turn} degrees");
+    }
+}
+
+/// The hand check without its repairs: no opening re-fit, no turn away
+/// from a neighbour.
+fn hand_without_repairs() -> HandConfig {
     HandConfig {
         fit_opening: false,
+        neighbour_turns_deg: Vec::new(),
         ..HandConfig::default()
     }
 }
