@@ -20,12 +20,13 @@
 //!
 //! With `PNG_DIR`, each scene is drawn as labels | split off | split on.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use mvgrasp_core::rng::SplitMix64;
 use mvgrasp_core::{ClusterConfig, GraspNet, MomentsNet, Planner, PlannerConfig, Segmentation};
 use mvgrasp_sim::camera::{Frame, NoiseModel, render};
 use mvgrasp_sim::eval::{crease_setting, episode_scene};
+use mvgrasp_sim::files::write_detections;
 use mvgrasp_sim::objects::{Catalog, Family};
 use mvgrasp_sim::scene::Scenario;
 use std::collections::HashMap;
@@ -99,48 +100,6 @@ fn score(frame: &Frame, seg: &Segmentation, score: &mut Score) {
     }
 }
 
-fn colour(i: usize) -> [u8; 3] {
-    let h = (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    [
-        (h >> 56) as u8 | 0x50,
-        (h >> 48) as u8 | 0x50,
-        (h >> 40) as u8 | 0x50,
-    ]
-}
-
-/// Labels | segmentation without the split | with it, side by side.
-fn draw(path: &Path, frame: &Frame, segs: [&Segmentation; 2]) -> anyhow::Result<()> {
-    let (w, h) = (frame.camera.width as usize, frame.camera.height as usize);
-    let mut image = vec![0u8; 3 * w * h * 3];
-    for (i, (&d, &label)) in frame.depth_mm.iter().zip(&frame.labels).enumerate() {
-        let grey = (255.0 * (1.4 - f64::from(d) / 1000.0).clamp(0.0, 1.0)) as u8 * u8::from(d > 0);
-        let row = (i / w) * 3 * w + i % w;
-        for panel in 0..3 {
-            let c = if panel == 0 && label >= 2 {
-                colour(usize::from(label))
-            } else {
-                [grey; 3]
-            };
-            image[3 * (row + panel * w)..][..3].copy_from_slice(&c);
-        }
-    }
-    for (panel, seg) in segs.iter().enumerate() {
-        for (d, c) in seg.clusters.iter().enumerate() {
-            for &p in c {
-                let i = seg.pixels[p as usize] as usize;
-                let row = (i / w) * 3 * w + i % w;
-                image[3 * (row + (panel + 1) * w)..][..3].copy_from_slice(&colour(100 + d));
-            }
-        }
-    }
-    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
-    let mut encoder = png::Encoder::new(file, 3 * w as u32, h as u32);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    encoder.write_header()?.write_image_data(&image)?;
-    Ok(())
-}
-
 fn main() -> anyhow::Result<()> {
     let mut args = std::env::args().skip(1);
     let episodes: u64 = args.next().map(|a| a.parse()).transpose()?.unwrap_or(16);
@@ -188,7 +147,7 @@ fn main() -> anyhow::Result<()> {
             }
             if let Some(dir) = &png_dir {
                 let name = format!("{scenario:?}-{seed}.png").to_lowercase();
-                draw(&dir.join(name), &frame, [&segs[0], &segs[1]])?;
+                write_detections(&dir.join(name), &frame, &[&segs[0], &segs[1]])?;
             }
         }
         for (s, on) in scores.iter().zip(["off", "on"]) {

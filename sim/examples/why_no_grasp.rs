@@ -81,8 +81,11 @@ impl GraspSource for Diagnosing<'_> {
                 .map_err(|e| mvgrasp_sim::Error::Scene(format!("planner: {e}")))?;
             let (merged, split) = merges(frame, &seg);
             if let Some(dir) = self.png_dir {
-                draw(&dir.join(format!("{}.png", self.seed)), frame, &seg)
-                    .map_err(|e| mvgrasp_sim::Error::Scene(format!("drawing: {e}")))?;
+                mvgrasp_sim::files::write_detections(
+                    &dir.join(format!("{}.png", self.seed)),
+                    frame,
+                    &[&seg],
+                )?;
             }
 
             let sizes: Vec<String> = q
@@ -117,44 +120,6 @@ impl GraspSource for Diagnosing<'_> {
         }
         Ok(ranked)
     }
-}
-
-/// The renderer's labels | the planner's detections, side by side.
-fn draw(path: &std::path::Path, frame: &Frame, seg: &mvgrasp_core::Segmentation) -> anyhow::Result<()> {
-    let colour = |i: usize| {
-        let h = (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        [
-            (h >> 56) as u8 | 0x50,
-            (h >> 48) as u8 | 0x50,
-            (h >> 40) as u8 | 0x50,
-        ]
-    };
-    let (w, h) = (frame.camera.width as usize, frame.camera.height as usize);
-    let mut image = vec![0u8; 3 * w * h * 2];
-    for (i, (&d, &label)) in frame.depth_mm.iter().zip(&frame.labels).enumerate() {
-        let grey = (255.0 * (1.4 - f64::from(d) / 1000.0).clamp(0.0, 1.0)) as u8 * u8::from(d > 0);
-        let row = (i / w) * 2 * w + i % w;
-        let c = if label >= 2 {
-            colour(usize::from(label))
-        } else {
-            [grey; 3]
-        };
-        image[3 * row..][..3].copy_from_slice(&c);
-        image[3 * (row + w)..][..3].copy_from_slice(&[grey; 3]);
-    }
-    for (d, c) in seg.clusters.iter().enumerate() {
-        for &p in c {
-            let i = seg.pixels[p as usize] as usize;
-            let row = (i / w) * 2 * w + i % w;
-            image[3 * (row + w)..][..3].copy_from_slice(&colour(100 + d));
-        }
-    }
-    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
-    let mut encoder = png::Encoder::new(file, 2 * w as u32, h as u32);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    encoder.write_header()?.write_image_data(&image)?;
-    Ok(())
 }
 
 /// Detections holding two or more objects (each at least 20% of its

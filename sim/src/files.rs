@@ -1,9 +1,11 @@
 //! Frames as files: the 16-bit depth PNG + camera JSON that `mvgrasp plan`,
-//! the Python client and `robot-bridge pick` read, a 16-bit label PNG, and a
-//! preview PNG for people.
+//! the Python client and `robot-bridge pick` read, a 16-bit label PNG, and
+//! PNGs for people: a preview, grasps drawn over it, detections beside the
+//! labels.
 
 use std::path::Path;
 
+use mvgrasp_core::Segmentation;
 use nalgebra::{Isometry3, Point3};
 
 use crate::camera::Frame;
@@ -138,6 +140,53 @@ pub fn write_grasp_snapshot(path: &Path, frame: &Frame, grasps: &[DrawnGrasp]) -
         png::ColorType::Rgb,
         png::BitDepth::Eight,
         &rgb,
+    )
+}
+
+/// A distinct, light colour for index `i`.
+fn colour(i: usize) -> [u8; 3] {
+    let h = (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    [
+        (h >> 56) as u8 | 0x50,
+        (h >> 48) as u8 | 0x50,
+        (h >> 40) as u8 | 0x50,
+    ]
+}
+
+/// Writes panels side by side, each as wide as the frame: the renderer's
+/// labels, then each of `segmentations`' detections (one colour each),
+/// over the depth in grey (nearer than 1.4 m; lost readings black).
+pub fn write_detections(path: &Path, frame: &Frame, segmentations: &[&Segmentation]) -> Result<()> {
+    let (w, h) = (frame.camera.width as usize, frame.camera.height as usize);
+    let panels = 1 + segmentations.len();
+    let mut image = vec![0u8; 3 * w * h * panels];
+    let at = |pixel: usize, panel: usize| 3 * ((pixel / w) * panels * w + panel * w + pixel % w);
+    for (i, (&d, &label)) in frame.depth_mm.iter().zip(&frame.labels).enumerate() {
+        let grey = (255.0 * (1.4 - f64::from(d) / 1000.0).clamp(0.0, 1.0)) as u8 * u8::from(d > 0);
+        for panel in 0..panels {
+            let c = if panel == 0 && label >= 2 {
+                colour(usize::from(label))
+            } else {
+                [grey; 3]
+            };
+            image[at(i, panel)..][..3].copy_from_slice(&c);
+        }
+    }
+    for (panel, seg) in segmentations.iter().enumerate() {
+        for (d, cluster) in seg.clusters.iter().enumerate() {
+            for &p in cluster {
+                let i = seg.pixels[p as usize] as usize;
+                image[at(i, panel + 1)..][..3].copy_from_slice(&colour(100 + d));
+            }
+        }
+    }
+    write_png(
+        path,
+        (panels * w) as u32,
+        h as u32,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &image,
     )
 }
 

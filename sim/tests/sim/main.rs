@@ -1089,6 +1089,71 @@ fn snapshots_draw_a_grasp_where_the_camera_sees_it() {
     let _ = std::fs::remove_file(&path);
 }
 
+#[test]
+fn detections_are_drawn_beside_the_labels() {
+    use mvgrasp_core::{Segmentation, TablePlane};
+    use mvgrasp_sim::camera::Frame;
+    use mvgrasp_sim::files::write_detections;
+
+    let (w, h) = (640usize, 480usize);
+    // A flat frame 1 m away; object 0 (label 2) fills a 20 px square at
+    // (100, 100), one reading is lost; one detection covers the square's
+    // left half.
+    let mut frame = Frame {
+        camera: top_down(0.0, 1.0),
+        depth_mm: vec![1000; w * h],
+        labels: vec![1; w * h],
+    };
+    let square: Vec<usize> = (100..120)
+        .flat_map(|y| (100..120).map(move |x| y * w + x))
+        .collect();
+    for &i in &square {
+        frame.labels[i] = 2;
+    }
+    frame.depth_mm[300 * w + 300] = 0;
+    let left: Vec<u32> = square
+        .iter()
+        .filter(|&&i| i % w < 110)
+        .map(|&i| i as u32)
+        .collect();
+    let seg = Segmentation {
+        table: TablePlane {
+            normal: Vector3::z(),
+            offset_m: 0.0,
+            support: 1.0,
+        },
+        points: vec![[0.0; 3]; left.len()],
+        clusters: vec![(0..left.len() as u32).collect()],
+        pixels: left,
+    };
+    let path = std::env::temp_dir().join(format!("mvgrasp-detections-{}.png", std::process::id()));
+    write_detections(&path, &frame, &[&seg]).unwrap();
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    assert_eq!(
+        (reader.info().width, reader.info().height),
+        (2 * w as u32, h as u32)
+    );
+    let mut rgb = vec![0; reader.output_buffer_size().unwrap()];
+    reader.next_frame(&mut rgb).unwrap();
+    let at = |panel: usize, x: usize, y: usize| {
+        let i = 3 * (y * 2 * w + panel * w + x);
+        [rgb[i], rgb[i + 1], rgb[i + 2]]
+    };
+    let grey = at(0, 50, 50);
+    assert_eq!(grey[0], grey[1]);
+    assert_eq!(grey, at(1, 50, 50), "the table is grey in both panels");
+    assert_eq!(at(0, 300, 300), [0, 0, 0], "a lost reading is black");
+    // Labels: the whole square in one colour.
+    assert_ne!(at(0, 105, 105), grey);
+    assert_eq!(at(0, 105, 105), at(0, 115, 115));
+    // Detections: the left half in its own colour, the right half grey.
+    assert_ne!(at(1, 105, 105), grey);
+    assert_ne!(at(1, 105, 105), at(0, 105, 105));
+    assert_eq!(at(1, 115, 115), grey);
+    let _ = std::fs::remove_file(&path);
+}
+
 mod meshes {
     use std::path::PathBuf;
 
