@@ -538,61 +538,56 @@ impl Planner {
                     }
                     Verdict::Refuse
                 };
-                // A grasp whose hand would hit a neighbour: turned away from
-                // it if a turn passes, ranked after the grasps as planned.
-                let turn_away_from = |c: Collision, g: &Grasp| {
-                    match c {
-                        Collision::Object(i) if Some(i) != own => own.and_then(|j| {
-                            turn_away(
-                                &g.world_from_grasp,
-                                g.width_m,
-                                &options.gripper,
-                                hand,
-                                &obstacles[j],
-                                |pose, width| hit(pose, width).is_none(),
-                            )
-                        }),
-                        _ => None,
-                    }
-                    .map(|(world_from_grasp, width_m)| Grasp {
-                        world_from_grasp,
-                        width_m,
-                        ..g.clone()
-                    })
-                    .ok_or(c)
-                };
-                let (g, turned_away) = match hit(&g.world_from_grasp, g.width_m) {
-                    None => (g, false),
-                    // Pads on its own object: open to what was seen of it, and check again.
+                // The check as planned: passed (no new pose), or what the
+                // hand hits. Pads on its own object: open to what was seen
+                // of it, and check again.
+                let checked = match hit(&g.world_from_grasp, g.width_m) {
+                    None => Ok(None),
                     Some(first @ Collision::Object(i)) if hand.fit_opening && Some(i) == own => {
-                        let Some((pose, width)) = fit_opening(
+                        match fit_opening(
                             &g.world_from_grasp,
                             g.width_m,
                             &options.gripper,
                             hand,
                             &obstacles[i],
-                        ) else {
-                            return refuse(first);
-                        };
-                        match hit(&pose, width) {
-                            None => (
-                                Grasp {
-                                    world_from_grasp: pose,
-                                    width_m: width,
-                                    ..g
-                                },
-                                false,
-                            ),
-                            Some(again) => match turn_away_from(again, &g) {
-                                Ok(turned) => (turned, true),
-                                Err(c) => return refuse(c),
-                            },
+                        ) {
+                            None => Err(first),
+                            Some((pose, width)) => hit(&pose, width).map_or(Ok(Some((pose, width))), Err),
                         }
                     }
-                    Some(c) => match turn_away_from(c, &g) {
-                        Ok(turned) => (turned, true),
-                        Err(c) => return refuse(c),
+                    Some(c) => Err(c),
+                };
+                // A hand that would hit a neighbour: turned away from it if
+                // a turn passes, ranked after the grasps as planned.
+                let (repaired, turned_away) = match checked {
+                    Ok(repaired) => (repaired, false),
+                    Err(c) => {
+                        let turned = match c {
+                            Collision::Object(i) if Some(i) != own => own.and_then(|j| {
+                                turn_away(
+                                    &g.world_from_grasp,
+                                    g.width_m,
+                                    &options.gripper,
+                                    hand,
+                                    &obstacles[j],
+                                    |pose, width| hit(pose, width).is_none(),
+                                )
+                            }),
+                            _ => None,
+                        };
+                        match turned {
+                            Some(turned) => (Some(turned), true),
+                            None => return refuse(c),
+                        }
+                    }
+                };
+                let g = match repaired {
+                    Some((world_from_grasp, width_m)) => Grasp {
+                        world_from_grasp,
+                        width_m,
+                        ..g
                     },
+                    None => g,
                 };
                 // Square the grasp to the surfaces its pads would meet, as
                 // seen, when the turned grasp passes the check too: of the
