@@ -28,8 +28,8 @@ use mvgrasp_sim::camera::{Frame, NoiseModel, render};
 use mvgrasp_sim::eval::{crease_setting, episode_scene};
 use mvgrasp_sim::files::write_detections;
 use mvgrasp_sim::objects::{Catalog, Family};
+use mvgrasp_sim::overlap::Overlap;
 use mvgrasp_sim::scene::Scenario;
-use std::collections::HashMap;
 
 /// Counts over a set of frames.
 #[derive(Default)]
@@ -43,61 +43,28 @@ struct Score {
 }
 
 fn score(frame: &Frame, seg: &Segmentation, score: &mut Score) {
-    // overlap[(detection, label)] = pixels; per-label and per-detection totals.
-    let mut overlap: HashMap<(usize, u16), usize> = HashMap::new();
-    let mut of_label: HashMap<u16, usize> = HashMap::new();
-    let mut of_detection = vec![0usize; seg.clusters.len()];
-    let mut detection_of_point = vec![usize::MAX; seg.points.len()];
-    for (d, c) in seg.clusters.iter().enumerate() {
-        for &i in c {
-            detection_of_point[i as usize] = d;
-        }
-    }
-    for (i, &pixel) in seg.pixels.iter().enumerate() {
-        let label = frame.labels[pixel as usize];
-        if label < 2 {
-            continue;
-        }
-        *of_label.entry(label).or_default() += 1;
-        let d = detection_of_point[i];
-        if d != usize::MAX {
-            of_detection[d] += 1;
-            *overlap.entry((d, label)).or_default() += 1;
-        }
-    }
+    let overlap = Overlap::new(frame, seg);
     score.detections += seg.clusters.len();
     let mut matched = vec![false; seg.clusters.len()];
-    for (&label, &n) in &of_label {
+    for (&label, &n) in &overlap.of_label {
         if n < 200 {
             continue;
         }
         score.visible += 1;
-        let shares: Vec<(usize, usize)> = overlap
+        if let Some(&(d, _)) = overlap
+            .shares(label)
             .iter()
-            .filter(|((_, l), _)| *l == label)
-            .map(|(&(d, _), &k)| (d, k))
-            .collect();
-        if let Some(&(d, _)) = shares
-            .iter()
-            .find(|&&(d, k)| k as f64 / (n + of_detection[d] - k) as f64 >= 0.5)
+            .find(|&&(d, k)| k as f64 / (n + overlap.of_detection[d] - k) as f64 >= 0.5)
         {
             score.found += 1;
             matched[d] = true;
         }
-        if shares.iter().filter(|&&(_, k)| k * 5 >= n).count() >= 2 {
+        if overlap.is_split(label) {
             score.split += 1;
         }
     }
     score.unmatched += matched.iter().filter(|&&m| !m).count();
-    for (d, &total) in of_detection.iter().enumerate() {
-        let big = overlap
-            .iter()
-            .filter(|((e, _), k)| *e == d && **k * 5 >= total)
-            .count();
-        if big >= 2 {
-            score.merged += 1;
-        }
-    }
+    score.merged += overlap.merged();
 }
 
 fn main() -> anyhow::Result<()> {

@@ -4,7 +4,7 @@
 //! visible (their family, matched by position to the scene's start), the
 //! objects detected and their extents, how many detections hold two or more
 //! objects (merged) and how many objects are spread over two or more
-//! detections (split; `segmentation_recall`'s measures), how many candidates at tau the hand
+//! detections (split; `sim::overlap`, as `segmentation_recall` counts them), how many candidates at tau the hand
 //! check refused (by what the hand would have hit: the table, the grasp's
 //! own object, a neighbour), and, planned again at tau 0, how many grasps
 //! were kept and the best quality any reached. (Whether those grasps would
@@ -79,7 +79,11 @@ impl GraspSource for Diagnosing<'_> {
                 .planner
                 .segment(&input)
                 .map_err(|e| mvgrasp_sim::Error::Scene(format!("planner: {e}")))?;
-            let (merged, split) = merges(frame, &seg);
+            let overlap = mvgrasp_sim::overlap::Overlap::new(frame, &seg);
+            let (merged, split) = (
+                overlap.merged(),
+                overlap.of_label.keys().filter(|&&l| overlap.is_split(l)).count(),
+            );
             if let Some(dir) = self.png_dir {
                 mvgrasp_sim::files::write_detections(
                     &dir.join(format!("{}.png", self.seed)),
@@ -120,45 +124,6 @@ impl GraspSource for Diagnosing<'_> {
         }
         Ok(ranked)
     }
-}
-
-/// Detections holding two or more objects (each at least 20% of its
-/// pixels), and objects spread over two or more detections (each holding at
-/// least 20% of the object's pixels): `segmentation_recall`'s measures.
-fn merges(frame: &Frame, seg: &mvgrasp_core::Segmentation) -> (usize, usize) {
-    let mut overlap: std::collections::HashMap<(usize, u16), usize> = std::collections::HashMap::new();
-    let mut of_label: std::collections::HashMap<u16, usize> = std::collections::HashMap::new();
-    let mut of_detection = vec![0usize; seg.clusters.len()];
-    for (d, c) in seg.clusters.iter().enumerate() {
-        for &i in c {
-            let label = frame.labels[seg.pixels[i as usize] as usize];
-            if label >= 2 {
-                *overlap.entry((d, label)).or_default() += 1;
-                *of_label.entry(label).or_default() += 1;
-                of_detection[d] += 1;
-            }
-        }
-    }
-    let merged = (0..seg.clusters.len())
-        .filter(|&d| {
-            overlap
-                .iter()
-                .filter(|((e, _), k)| *e == d && **k * 5 >= of_detection[d])
-                .count()
-                >= 2
-        })
-        .count();
-    let split = of_label
-        .iter()
-        .filter(|&(&l, &n)| {
-            overlap
-                .iter()
-                .filter(|((_, m), k)| *m == l && **k * 5 >= n)
-                .count()
-                >= 2
-        })
-        .count();
-    (merged, split)
 }
 
 fn main() -> anyhow::Result<()> {

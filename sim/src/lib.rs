@@ -29,6 +29,7 @@ pub mod files;
 pub mod grasp;
 pub mod mesh;
 pub mod objects;
+pub mod overlap;
 pub mod physics;
 pub mod pile;
 pub mod scene;

@@ -1154,6 +1154,56 @@ fn detections_are_drawn_beside_the_labels() {
     let _ = std::fs::remove_file(&path);
 }
 
+#[test]
+fn overlap_counts_merged_detections_and_split_objects() {
+    use mvgrasp_core::{Segmentation, TablePlane};
+    use mvgrasp_sim::camera::Frame;
+    use mvgrasp_sim::overlap::Overlap;
+
+    // Ten pixels of object 0 (label 2), ten of object 1 (label 3), one of
+    // the table; every pixel a kept point.
+    let labels: Vec<u16> = [vec![2; 10], vec![3; 10], vec![1]].concat();
+    let frame = Frame {
+        camera: top_down(0.0, 1.0),
+        depth_mm: vec![1000; labels.len()],
+        labels,
+    };
+    let seg = |clusters: Vec<Vec<u32>>| Segmentation {
+        table: TablePlane {
+            normal: Vector3::z(),
+            offset_m: 0.0,
+            support: 1.0,
+        },
+        points: vec![[0.0; 3]; 21],
+        pixels: (0..21).collect(),
+        clusters,
+    };
+    // Detection 0: object 0's first 5 pixels and all of object 1 (merged);
+    // detection 1: object 0's other 5 and the table pixel. Object 0 is split.
+    let o = Overlap::new(
+        &frame,
+        &seg(vec![
+            (0..5).chain(10..20).collect(),
+            (5..10).chain(20..21).collect(),
+        ]),
+    );
+    assert_eq!(o.of_label[&2], 10);
+    assert_eq!(o.of_detection, vec![15, 5], "the table pixel does not count");
+    assert_eq!(o.merged(), 1);
+    assert!(o.is_split(2));
+    assert!(!o.is_split(3));
+    // Object 0 in one detection with a pixel of object 1 (under 20%), object 1's
+    // other nine unclustered: nothing merged or split, and object 1 still has
+    // its ten kept pixels.
+    let o = Overlap::new(&frame, &seg(vec![(0..11).collect()]));
+    assert_eq!(o.merged(), 0);
+    assert!(!o.is_split(2) && !o.is_split(3));
+    assert_eq!(o.of_label[&3], 10);
+    let mut shares = o.shares(3);
+    shares.sort();
+    assert_eq!(shares, vec![(0, 1)]);
+}
+
 mod meshes {
     use std::path::PathBuf;
 
