@@ -31,11 +31,14 @@
 //! object falls), and objects that left the table are gone (counted as
 //! `fell_off`, not removed). An attempt stopped by the approach check
 //! leaves the scene as it was (a real arm's planner would not move there),
-//! and so does one that matched no object; until the scene next moves, the
-//! executor then takes the best of the planner's ranked grasps that is not
-//! one it already tried ([`same_grasp`]), as a robot would, rather than
-//! failing the same grasp three times over. (Before 2026-11-24 it took the
-//! best grasp every time.)
+//! and so does one that matched no object. Until an object is next taken,
+//! the executor takes the best of the planner's ranked grasps that is not
+//! one it already tried and failed ([`same_grasp`]), as a robot would,
+//! rather than failing the same grasp three times over; a grasp that
+//! slipped but moved its object plans elsewhere anyway. (Before 2026-11-24
+//! it took the best grasp every time; until 2026-11-25 it forgot the
+//! failed grasps after every physics trial, so one that slipped without
+//! moving anything was tried again.)
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -61,9 +64,8 @@ pub const MAX_CONSECUTIVE_FAILURES: usize = 3;
 /// Opening beyond the planned width while the hand approaches (m).
 const APPROACH_MARGIN_M: f64 = 0.02;
 
-/// Grasps asked of the planner per frame, best first: after an approach
-/// check refuses the best, the executor takes the next (see
-/// [`same_grasp`]).
+/// Grasps asked of the planner per frame, best first: after the best
+/// fails, the executor takes the next (see [`same_grasp`]).
 pub const RANKED_GRASPS: usize = 8;
 
 /// Two grasps count as the same within this distance (m) and turn (deg);
@@ -588,9 +590,9 @@ pub fn run_episode(
         last_plan_ms: None,
     };
     let limit = 2 * episode.objects + 3;
-    // Grasps tried since the scene last moved that left it as it was (the
-    // approach check refused them, or they matched no object): the executor
-    // takes the best grasp that is none of them.
+    // Grasps tried and failed since an object was last taken (the approach
+    // check refused them, they matched no object, or the trial failed): the
+    // executor takes the best grasp that is none of them.
     let mut refused: Vec<Isometry3<f64>> = Vec::new();
     loop {
         if scene.objects.is_empty() {
@@ -654,9 +656,11 @@ pub fn run_episode(
                     if failure.is_none() {
                         scene.objects.remove(target);
                         episode.removed += 1;
+                        refused.clear();
+                    } else {
+                        refused.push(grasp.world_from_grasp);
                     }
                     episode.fell_off += settle(&mut scene, &SettleConfig::default());
-                    refused.clear();
                 } else {
                     refused.push(grasp.world_from_grasp);
                 }

@@ -921,6 +921,51 @@ mod eval {
     }
 
     #[test]
+    fn a_grasp_that_failed_in_physics_is_not_tried_again_until_an_object_is_taken() {
+        // Two top-down grasps 30 cm over the isolated object, 5 cm apart,
+        // matched to it by their centroid: each passes the approach check,
+        // closes on air in the physics trial and leaves the scene as it was.
+        let config = EpisodeConfig::default();
+        let (scene, _) = episode_scene(Scenario::Isolated, 900_000, &config.catalog).unwrap();
+        let aabb = scene.objects[0].world_aabb;
+        let centre = (aabb.mins + aabb.maxs) * 0.5;
+        let centroid = Point3::new(f64::from(centre.x), f64::from(centre.y), f64::from(centre.z));
+        let down = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+        let over = |dx: f64| PlannedGrasp {
+            world_from_grasp: Isometry3::from_parts(
+                (centroid.coords + Vector3::new(dx, 0.0, 0.3)).into(),
+                down,
+            ),
+            width_m: 0.05,
+            quality: 0.9,
+            object_centroid: centroid,
+        };
+        let mut source = Scripted(vec![over(0.0), over(0.05)]);
+        let setting = Setting::parse("all:0.1").unwrap();
+        let e = run_episode(Scenario::Isolated, 900_000, &setting, &mut source, &config).unwrap();
+        let tried: Vec<f64> = e
+            .attempts
+            .iter()
+            .map(|a| a.world_from_grasp.translation.x - centroid.x)
+            .collect();
+        assert_eq!(tried.len(), 2, "{tried:?}");
+        assert!(
+            tried[0].abs() < 1e-9 && (tried[1] - 0.05).abs() < 1e-9,
+            "{tried:?}"
+        );
+        // Both ran the trial (a label, no approach collision) and failed.
+        assert!(
+            e.attempts
+                .iter()
+                .all(|a| a.failure.is_some() && a.collision.is_none() && a.label.is_some()),
+            "{:?}",
+            e.attempts
+        );
+        assert_eq!(e.end, End::NoGraspAboveTau);
+        assert_eq!(e.removed, 0);
+    }
+
+    #[test]
     fn the_same_grasp_within_a_centimetre_and_15_degrees_either_way_round() {
         let a = Isometry3::translation(0.1, 0.2, 0.3);
         let turned = |deg: f64, axis: Vector3<f64>| {
