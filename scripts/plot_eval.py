@@ -4,7 +4,8 @@
     python3 scripts/plot_eval.py results/eval.json results/eval.png [--title TEXT]
 
 Success and removal rate per scenario (bars per planner setting), with the
-paper's figures as black ticks where it reports them. Needs matplotlib.
+paper's figures as black ticks where it reports them, and each bar's 95%
+interval over episodes where the report has one. Needs matplotlib.
 """
 
 import json
@@ -31,13 +32,17 @@ def main():
     width = 0.8 / len(settings)
     for ax, metric, k in ((axes[0], "success_rate", 0), (axes[1], "removal_rate", 1)):
         for j, setting in enumerate(settings):
-            xs, ys = [], []
+            xs, ys, lo, hi = [], [], [], []
             for i, sc in enumerate(scenarios):
                 row = next((r for r in rows if r["scenario"] == sc and r["setting"] == setting), None)
                 if row and row["attempts"]:
                     xs.append(i + (j - (len(settings) - 1) / 2) * width)
                     ys.append(row[metric])
-            ax.bar(xs, ys, width, label=setting)
+                    # 95% interval over episodes (reports since 2026-11-25).
+                    ci = row.get(metric.replace("_rate", "_ci95")) or [None, None]
+                    lo.append(row[metric] - ci[0] if ci[0] is not None else 0.0)
+                    hi.append(ci[1] - row[metric] if ci[1] is not None else 0.0)
+            ax.bar(xs, ys, width, label=setting, yerr=[lo, hi], capsize=2, error_kw={"linewidth": 0.8})
         for i, sc in enumerate(scenarios):
             paper = PAPER.get(sc, (None, None))[k]
             if paper is not None:

@@ -863,6 +863,44 @@ pub struct Summary {
     pub cleared: usize,
     /// Planning time percentiles (ms): 50th, 90th.
     pub plan_ms: [f64; 2],
+    /// 95% interval of the success rate, resampling whole episodes
+    /// ([`episode_bootstrap`]; NaN without attempts).
+    pub success_ci95: [f64; 2],
+    /// 95% interval of the removal rate, resampling whole episodes.
+    pub removal_ci95: [f64; 2],
+}
+
+/// Resamples drawn by [`episode_bootstrap`].
+pub const BOOTSTRAP_RESAMPLES: usize = 2000;
+
+/// The 2.5th and 97.5th percentiles of `sum(numerator) / sum(denominator)`
+/// over [`BOOTSTRAP_RESAMPLES`] resamples, with replacement, of the
+/// episodes' `(numerator, denominator)` pairs: a percentile bootstrap over
+/// episodes, since the attempts and objects of one episode are not
+/// independent of each other. Seeded, so a report is reproducible;
+/// resamples with a zero denominator are left out; NaN when none is left.
+pub fn episode_bootstrap(pairs: &[(usize, usize)]) -> [f64; 2] {
+    let mut rng = SplitMix64::new(0xB007_57A9);
+    let mut rates = Vec::with_capacity(BOOTSTRAP_RESAMPLES);
+    if !pairs.is_empty() {
+        for _ in 0..BOOTSTRAP_RESAMPLES {
+            let (mut num, mut den) = (0usize, 0usize);
+            for _ in 0..pairs.len() {
+                let (n, d) = pairs[rng.below(pairs.len())];
+                num += n;
+                den += d;
+            }
+            if den > 0 {
+                rates.push(num as f64 / den as f64);
+            }
+        }
+    }
+    if rates.is_empty() {
+        return [f64::NAN; 2];
+    }
+    rates.sort_by(f64::total_cmp);
+    let at = |p: f64| rates[((rates.len() - 1) as f64 * p).round() as usize];
+    [at(0.025), at(0.975)]
 }
 
 impl Summary {
@@ -905,6 +943,18 @@ impl Summary {
             ended_without_grasp: episodes.iter().filter(|e| e.end == End::NoGraspAboveTau).count(),
             cleared: episodes.iter().filter(|e| e.end == End::Cleared).count(),
             plan_ms: [pct(0.5), pct(0.9)],
+            success_ci95: episode_bootstrap(
+                &episodes
+                    .iter()
+                    .map(|e| (e.successes(), e.attempts.len()))
+                    .collect::<Vec<_>>(),
+            ),
+            removal_ci95: episode_bootstrap(
+                &episodes
+                    .iter()
+                    .map(|e| (e.removed, e.objects))
+                    .collect::<Vec<_>>(),
+            ),
         }
     }
 
@@ -957,11 +1007,18 @@ pub fn collision_list(summaries: &[Summary]) -> String {
 /// The Markdown table of `summaries`.
 pub fn markdown_table(summaries: &[Summary]) -> String {
     let mut out = String::from(
-        "| scenario | setting | episodes | success | removal | attempts | cleared | no grasp > tau | collision on approach | slip during lift | width too small | object missed | plan p50 / p90 (ms) | paper |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
+        "| scenario | setting | episodes | success | removal | attempts | cleared | no grasp > tau | collision on approach | slip during lift | width too small | object missed | plan p50 / p90 (ms) | paper | 95% intervals: success; removal |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|\n",
     );
+    let interval = |ci: [f64; 2]| {
+        if ci.iter().all(|v| v.is_finite()) {
+            format!("{:.2}-{:.2}", ci[0], ci[1])
+        } else {
+            "-".to_owned()
+        }
+    };
     for s in summaries {
         out.push_str(&format!(
-            "| {} | {} | {} | {:.2} ({}/{}) | {:.2} ({}/{}) | {} | {} | {} | {} | {} | {} | {} | {:.0} / {:.0} | {} |\n",
+            "| {} | {} | {} | {:.2} ({}/{}) | {:.2} ({}/{}) | {} | {} | {} | {} | {} | {} | {} | {:.0} / {:.0} | {} | {}; {} |\n",
             s.scenario.name(),
             s.setting,
             s.episodes,
@@ -981,6 +1038,8 @@ pub fn markdown_table(summaries: &[Summary]) -> String {
             s.plan_ms[0],
             s.plan_ms[1],
             paper_numbers(s.scenario),
+            interval(s.success_ci95),
+            interval(s.removal_ci95),
         ));
     }
     out

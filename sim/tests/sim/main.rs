@@ -646,8 +646,8 @@ mod eval {
     use mvgrasp_sim::camera::Frame;
     use mvgrasp_sim::eval::{
         Attempt, CollisionSite, End, Episode, EpisodeConfig, Failure, GraspSource, InProcess, PlannedGrasp,
-        Setting, Summary, collision_list, crease_setting, episode_record, episode_scene, label_table,
-        markdown_table, objects_outside_view, run_episode, same_grasp,
+        Setting, Summary, collision_list, crease_setting, episode_bootstrap, episode_record, episode_scene,
+        label_table, markdown_table, objects_outside_view, run_episode, same_grasp,
     };
     use mvgrasp_sim::grasp::{HandPart, Obstacle};
     use mvgrasp_sim::objects::Family;
@@ -986,6 +986,26 @@ mod eval {
     }
 
     #[test]
+    fn the_episode_bootstrap_brackets_the_rate_and_narrows_with_more_episodes() {
+        assert!(episode_bootstrap(&[]).iter().all(|v| v.is_nan()));
+        assert!(episode_bootstrap(&[(0, 0), (0, 0)]).iter().all(|v| v.is_nan()));
+        // Every episode at 4 of 5: no spread at all.
+        assert_eq!(episode_bootstrap(&[(4, 5); 16]), [0.8, 0.8]);
+        // Episodes removing 2, 3, 4 or 5 of 5 in turn: the interval holds
+        // the overall rate (0.7), and four times the episodes halve it
+        // roughly (the bootstrap's 1 / sqrt(n)).
+        let pairs = |n: usize| (0..n).map(|i| (2 + i % 4, 5)).collect::<Vec<_>>();
+        let [lo16, hi16] = episode_bootstrap(&pairs(16));
+        let [lo64, hi64] = episode_bootstrap(&pairs(64));
+        assert!(lo16 < 0.7 && 0.7 < hi16, "{lo16} {hi16}");
+        assert!(lo64 < 0.7 && 0.7 < hi64, "{lo64} {hi64}");
+        let ratio = (hi16 - lo16) / (hi64 - lo64);
+        assert!((1.6..2.5).contains(&ratio), "{ratio}");
+        // Seeded: the same pairs, the same interval.
+        assert_eq!(episode_bootstrap(&pairs(16)), [lo16, hi16]);
+    }
+
+    #[test]
     fn summaries_count_rates_and_causes() {
         let attempt = |failure| Attempt {
             plan_ms: 10.0,
@@ -1068,11 +1088,16 @@ mod eval {
         assert_eq!((s.ended_without_grasp, s.cleared), (1, 0));
         // Nine planning times (seven of 10 ms, two of 30 ms): p50 10, p90 30.
         assert_eq!(s.plan_ms, [10.0, 30.0]);
+        // Resampling the two episodes: both the first (removal 6/8), both
+        // the second (0/10) or one of each (3/9), each both ways round.
+        assert_eq!(s.removal_ci95, [0.0, 0.75]);
+        assert_eq!(s.success_ci95, [0.0, 0.75]);
         let table = markdown_table(&[s]);
         assert!(
             table.contains("| packed | entropy:0.8 | 2 | 0.43 (3/7) | 0.33 (3/9) |"),
             "{table}"
         );
+        assert!(table.contains("| 0.00-0.75; 0.00-0.75 |\n"), "{table}");
         // The labels against physics: only the four physics trials count,
         // families in catalogue order.
         let labels = label_table(&episodes.iter().collect::<Vec<_>>());
