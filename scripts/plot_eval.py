@@ -38,7 +38,7 @@ def main():
                 if row and row["attempts"]:
                     xs.append(i + (j - (len(settings) - 1) / 2) * width)
                     ys.append(row[metric])
-                    # 95% interval over episodes (reports since 2026-11-25).
+                    # 95% interval over episodes (reports since 9513968).
                     ci = row.get(metric.replace("_rate", "_ci95")) or [None, None]
                     lo.append(row[metric] - ci[0] if ci[0] is not None else 0.0)
                     hi.append(ci[1] - row[metric] if ci[1] is not None else 0.0)

@@ -36,7 +36,7 @@
 //! one it already tried and failed ([`same_grasp`]), as a robot would,
 //! rather than failing the same grasp three times over; a grasp that
 //! slipped but moved its object plans elsewhere anyway. (Before 2026-11-24
-//! it took the best grasp every time; until 2026-11-25 it forgot the
+//! it took the best grasp every time; until 4015fe6 it forgot the
 //! failed grasps after every physics trial, so one that slipped without
 //! moving anything was tried again.)
 
