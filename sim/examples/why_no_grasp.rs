@@ -8,7 +8,10 @@
 //! check refused (by what the hand would have hit: the table, the grasp's
 //! own object, a neighbour), and, planned again at tau 0, how many grasps
 //! were kept and the best quality any reached. (Whether those grasps would
-//! have held: run the same setting at tau 0.)
+//! have held: run the same setting at tau 0.) An episode can also end on a
+//! frame whose grasps had all already failed (the loop does not try one
+//! again until an object is taken): then the line says how many it was
+//! offered.
 //!
 //!     cargo run --release -p mvgrasp-sim --example why_no_grasp [SCENARIO] [SETTING] [EPISODES] [SEED] [MODEL] [FAMILIES] [PNG_DIR]
 //!
@@ -41,7 +44,15 @@ impl GraspSource for Diagnosing<'_> {
         options: &PlanOptions,
     ) -> mvgrasp_sim::Result<Vec<PlannedGrasp>> {
         let ranked = self.inner.grasps(frame, workspace, options)?;
-        if ranked.is_empty() {
+        if !ranked.is_empty() {
+            // Kept for an episode that ends on this frame anyway: the loop
+            // takes none of these grasps when each has already failed since
+            // an object was last taken.
+            self.last = format!(
+                "offered {} grasp(s), every one already failed since an object was last taken",
+                ranked.len()
+            );
+        } else {
             let bytes = frame.depth_le_bytes();
             let input = frame.scene_input(&bytes, workspace);
             let at_tau = PlanOptions {
