@@ -8,7 +8,8 @@ use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::decode::{
     Collision, DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, Verdict, ViewPlacement, contact_slopes,
-    decode_view, fit_opening, hand_collision, hand_out_of_view, rank_grasps_vetted, squaring_turn, turn_away,
+    decode_view, deepen, fit_opening, hand_collision, hand_out_of_view, rank_grasps_vetted, squaring_turn,
+    turn_away,
 };
 use crate::error::{Error, Result};
 use crate::geometry::Workspace;
@@ -618,6 +619,25 @@ impl Planner {
                         }
                     }
                     None => g,
+                };
+                // Deeper where the hand and the table allow: fingertips
+                // that stop above the middle of a round object let it slip.
+                let g = match hand.enabled.then(|| {
+                    deepen(
+                        &g.world_from_grasp,
+                        g.width_m,
+                        &options.gripper,
+                        hand,
+                        &table,
+                        self.config.decode.table_clearance_m,
+                        |pose| hit(pose, g.width_m).is_none(),
+                    )
+                }) {
+                    Some(Some(world_from_grasp)) => Grasp {
+                        world_from_grasp,
+                        ..g
+                    },
+                    _ => g,
                 };
                 // Pads past the image border: maybe onto the part of the
                 // object never seen. Tried last, not refused: the object may

@@ -52,8 +52,10 @@ fn check(response: &pb::PlanGraspsResponse, scene: &Scene, max_width_m: f64) {
         assert!((norm - 1.0).abs() < 1e-9, "quaternion norm {norm}");
         assert!(g.width_m > 0.0 && g.width_m <= max_width_m, "width {}", g.width_m);
         assert!((0.0..=1.0).contains(&g.quality));
-        // The grasp centre lies on or near its object: within 1.5 cm of the
-        // box its points span, in the object's frame.
+        // The grasp centre lies on or near its object: within 2 cm of the
+        // box its points span, in the object's frame (the fingertips go up
+        // to 3.5 cm past the seen surface: 3 cm, then 5 mm deeper where the
+        // hand allows, `HandConfig::deepen_m`; past a thin object's far side).
         let object = response
             .objects
             .iter()
@@ -70,7 +72,7 @@ fn check(response: &pb::PlanGraspsResponse, scene: &Scene, max_width_m: f64) {
         )
         .norm();
         assert!(
-            outside < 0.015,
+            outside < 0.02,
             "grasp {:.3} m outside object {}",
             outside,
             object.id

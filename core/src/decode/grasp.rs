@@ -194,6 +194,23 @@ pub fn grasp_at(
     Some(Isometry3::from_parts(Translation3::from(origin), rotation))
 }
 
+/// How far the lowest pad corner lies above the table relative to the
+/// fingertip midpoint (m; negative: below it), for a hand closing along
+/// `closing` and approaching along `approach` (unit vectors) at opening
+/// `width_m`.
+pub(crate) fn lowest_pad_corner(
+    closing: &Vector3<f64>,
+    approach: &Vector3<f64>,
+    width_m: f64,
+    gripper: &Gripper,
+    table: &TablePlane,
+) -> f64 {
+    let n = &table.normal;
+    let across = approach.cross(closing);
+    -(0.5 * width_m * n.dot(closing).abs()) - 0.5 * gripper.finger_width_m * n.dot(&across).abs()
+        + (-gripper.finger_depth_m * n.dot(approach)).min(0.0)
+}
+
 /// The insertion (<= `config.insertion_m`) that keeps every pad corner at
 /// least `table_clearance_m` above the table, or `None` if none does.
 fn clear_of_table(
@@ -206,12 +223,8 @@ fn clear_of_table(
     config: &DecodeConfig,
 ) -> Option<f64> {
     let n = &table.normal;
-    let across = approach.cross(closing);
-    // Lowest pad corner relative to the fingertip midpoint, along n.
-    let lowest = -(0.5 * width_m * n.dot(closing).abs())
-        - 0.5 * gripper.finger_width_m * n.dot(&across).abs()
-        + (-gripper.finger_depth_m * n.dot(approach)).min(0.0);
-    let margin = table.height_of(surface) + lowest - config.table_clearance_m;
+    let margin = table.height_of(surface) + lowest_pad_corner(closing, approach, width_m, gripper, table)
+        - config.table_clearance_m;
     let descent = -n.dot(approach); // height lost per metre of insertion
     if descent > 1e-9 {
         let limit = margin / descent;

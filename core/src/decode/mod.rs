@@ -6,7 +6,7 @@ mod peaks;
 mod rank;
 
 pub use collision::{
-    Collision, HandConfig, Obstacle, contact_slopes, fit_opening, hand_collides, hand_collision,
+    Collision, HandConfig, Obstacle, contact_slopes, deepen, fit_opening, hand_collides, hand_collision,
     hand_out_of_view, squaring_turn, turn_away,
 };
 pub use grasp::{DecodeConfig, Grasp, ViewPlacement, decode_view, grasp_at};

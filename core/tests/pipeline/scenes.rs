@@ -282,7 +282,15 @@ fn openings_too_narrow_for_the_object_are_re_fitted() {
         &scene,
         &camera,
         &mut net,
-        [hand_without_repairs(), HandConfig::default(), hand_off()],
+        [
+            hand_without_repairs(),
+            // Re-fitted only, not pushed deeper, to compare poses.
+            HandConfig {
+                deepen_m: 0.0,
+                ..HandConfig::default()
+            },
+            hand_off(),
+        ],
     );
     assert!(
         refused.refused_for_collision > 0,
@@ -482,6 +490,7 @@ fn hand_without_repairs() -> HandConfig {
     HandConfig {
         fit_opening: false,
         neighbour_turns_deg: Vec::new(),
+        deepen_m: 0.0,
         ..HandConfig::default()
     }
 }
@@ -521,4 +530,51 @@ fn plans_with_hands<const N: usize>(
         let planner = Planner::new(config, net.contract().clone()).expect("planner");
         planner.plan(&input, &options, net).expect("plan")
     })
+}
+
+/// A grasp that passes the check goes 5 mm (or 2.5 mm) further along its
+/// approach when the hand still passes there, and stays as it was
+/// otherwise; nothing else about it changes.
+#[test]
+fn grasps_go_deeper_where_the_hand_still_passes() {
+    let scene = Scene {
+        table_z: 0.0,
+        table_half: [0.6, 0.4],
+        shapes: vec![Shape::standing_box(0.0, 0.0, 0.0, 0.4, [0.06, 0.04, 0.12])],
+    };
+    let camera = Camera::orbit(Vector3::zeros(), 0.8, 50.0, -90.0);
+    let hand = HandConfig::default();
+    let [deeper, as_planned] = plans_with_hands(
+        &scene,
+        &camera,
+        &mut MomentsNet::default(),
+        [
+            hand.clone(),
+            HandConfig {
+                deepen_m: 0.0,
+                ..hand.clone()
+            },
+        ],
+    );
+    assert_eq!(deeper.grasps.len(), as_planned.grasps.len());
+    let mut moved = 0;
+    for (d, a) in deeper.grasps.iter().zip(&as_planned.grasps) {
+        assert_eq!(
+            (d.object_id, d.view, d.pixel, d.quality, d.width_m),
+            (a.object_id, a.view, a.pixel, a.quality, a.width_m)
+        );
+        assert_eq!(d.world_from_grasp.rotation, a.world_from_grasp.rotation);
+        let approach = a.world_from_grasp.rotation * Vector3::z();
+        let step = d.world_from_grasp.translation.vector - a.world_from_grasp.translation.vector;
+        let along = step.dot(&approach);
+        assert!((step - approach * along).norm() < 1e-9, "moved off the approach");
+        assert!(
+            [0.0, hand.deepen_m / 2.0, hand.deepen_m]
+                .iter()
+                .any(|&d| (along - d).abs() < 1e-9),
+            "moved {along} m"
+        );
+        moved += usize::from(along > 0.0);
+    }
+    assert!(moved > 0, "no grasp went deeper on a 12 cm box");
 }
