@@ -622,7 +622,7 @@ impl Planner {
                 };
                 // Deeper where the hand and the table allow: fingertips
                 // that stop above the middle of a round object let it slip.
-                let g = match hand.enabled.then(|| {
+                let deeper = hand.enabled.then(|| {
                     deepen(
                         &g.world_from_grasp,
                         g.width_m,
@@ -632,12 +632,13 @@ impl Planner {
                         self.config.decode.table_clearance_m,
                         |pose| hit(pose, g.width_m).is_none(),
                     )
-                }) {
-                    Some(Some(world_from_grasp)) => Grasp {
+                });
+                let g = match deeper.flatten() {
+                    Some(world_from_grasp) => Grasp {
                         world_from_grasp,
                         ..g
                     },
-                    _ => g,
+                    None => g,
                 };
                 // Pads past the image border: maybe onto the part of the
                 // object never seen. Tried last, not refused: the object may

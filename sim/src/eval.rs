@@ -631,10 +631,7 @@ pub fn run_episode(
         };
         let mut label = None;
         let (failure, collision) = match scene.object_at(&grasp.object_centroid, 0.01) {
-            None => {
-                refused.push(grasp.world_from_grasp);
-                (Some(Failure::ObjectMissed), None)
-            }
+            None => (Some(Failure::ObjectMissed), None),
             Some(target) => {
                 let (tried, poses) = try_grasp(&scene, target, &grasp, config);
                 let (failure, collision) = match tried {
@@ -656,17 +653,17 @@ pub fn run_episode(
                     if failure.is_none() {
                         scene.objects.remove(target);
                         episode.removed += 1;
-                        refused.clear();
-                    } else {
-                        refused.push(grasp.world_from_grasp);
                     }
                     episode.fell_off += settle(&mut scene, &SettleConfig::default());
-                } else {
-                    refused.push(grasp.world_from_grasp);
                 }
                 (failure, collision)
             }
         };
+        if failure.is_some() {
+            refused.push(grasp.world_from_grasp);
+        } else {
+            refused.clear();
+        }
         episode.attempts.push(Attempt {
             plan_ms,
             world_from_grasp: grasp.world_from_grasp,
