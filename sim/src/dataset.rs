@@ -169,6 +169,7 @@ pub fn generate(
             reason: "scenarios, families and scenes per shard must not be empty / zero".into(),
         });
     }
+    config.targets.check()?;
     std::fs::create_dir_all(out).map_err(|e| file_error(out, e))?;
     let planner = Planner::new(PlannerConfig::default(), contract.clone()).map_err(|e| Error::Invalid {
         field: "contract",

@@ -74,6 +74,13 @@ enum Command {
         /// A perfect sensor.
         #[arg(long)]
         no_noise: bool,
+        /// Candidate grasp centres every this many pixels along rows and
+        /// columns (1: every pixel of the silhouette).
+        #[arg(long, default_value_t = TargetConfig::default().stride_px)]
+        stride_px: usize,
+        /// Candidate image angles per centre, spread over 180 degrees.
+        #[arg(long, default_value_t = TargetConfig::default().angles)]
+        angles: usize,
         /// Worker threads (default: one per core).
         #[arg(long)]
         threads: Option<usize>,
@@ -306,6 +313,8 @@ fn main() -> anyhow::Result<()> {
             pixel_size_mm,
             scenes_per_shard,
             no_noise,
+            stride_px,
+            angles,
             threads,
             data_version,
         } => {
@@ -323,7 +332,11 @@ fn main() -> anyhow::Result<()> {
                 scenarios,
                 catalog: objects.catalog()?,
                 scenes_per_shard,
-                targets: TargetConfig::default(),
+                targets: TargetConfig {
+                    stride_px,
+                    angles,
+                    ..TargetConfig::default()
+                },
                 noise: (!no_noise).then(NoiseModel::default),
                 data_version,
             };

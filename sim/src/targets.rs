@@ -59,6 +59,22 @@ impl Default for TargetConfig {
     }
 }
 
+impl TargetConfig {
+    /// Refuses settings that would label nothing: a zero stride or no angles.
+    pub fn check(&self) -> Result<()> {
+        if self.stride_px == 0 || self.angles == 0 {
+            return Err(Error::Invalid {
+                field: "targets",
+                reason: format!(
+                    "the candidate stride ({} px) and angles ({}) must both be at least 1",
+                    self.stride_px, self.angles
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
 /// One view with its targets.
 #[derive(Debug, Clone)]
 pub struct LabelledView {
@@ -121,6 +137,7 @@ pub fn label_frame(
     config: &TargetConfig,
     rng: &mut SplitMix64,
 ) -> Result<Vec<LabelledView>> {
+    config.check()?;
     let bytes = frame.depth_le_bytes();
     let input = frame.scene_input(&bytes, scene.workspace());
     let options = PlanOptions {

@@ -81,7 +81,8 @@ def from_onnx(path, architecture):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--onnx", required=True)
-    p.add_argument("--architecture", choices=ARCHITECTURES, required=True)
+    p.add_argument("--architecture", choices=[a for a in ARCHITECTURES if a != "skip"], required=True,
+                   help="the file's network (a `skip` file cannot be read back yet)")
     p.add_argument("--out", required=True, help="run folder for model.pt")
     args = p.parse_args(argv)
     model = from_onnx(args.onnx, args.architecture)

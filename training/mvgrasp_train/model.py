@@ -9,12 +9,24 @@ padding, so the output is the input's size for sides that are multiples of
 Variant `narrow`: the same network with the last transposed convolution
 giving 8 channels instead of 32. That layer runs at full resolution and is
 about half the CPU time of the whole network (BENCHMARKS.md).
+
+Variant `skip`: `narrow` plus two skip connections, the encoder's features
+at 24 x 24 (after the first convolution) and at 12 x 12 (after the second)
+added through 1x1 convolutions to the decoder's at the same resolutions
+(after its fourth and fifth layers). The 6 x 6 x 32 bottleneck is all the
+paper's network has to place the best pixel with; the skips hand the
+decoder the finer encoder maps. The 1x1 convolutions start at zero, so a
+fresh `skip` network computes what the `narrow` one with the same other
+weights computes, and `train --init` can start it from a `narrow` run.
 """
 
 import torch
 from torch import nn
 
-ARCHITECTURES = ("paper", "narrow")
+ARCHITECTURES = ("paper", "narrow", "skip")
+
+# `skip`: (block whose output is taken, block after whose output it is added); blocks 0-5 encode, 6-11 decode.
+SKIPS = ((1, 9), (0, 10))
 
 
 def _block(conv, channels):
@@ -36,10 +48,31 @@ class GraspNet(nn.Module):
         layers += [_block(nn.ConvTranspose2d(i, o, k, s, p, op, bias=False), o) for i, o, k, s, p, op in dec]
         self.body = nn.Sequential(*layers)
         self.heads = nn.Conv2d(last, 4, 1)
+        self.skip_pairs = SKIPS if architecture == "skip" else ()
+        out_channels = [o for _, o, *_ in enc + dec]
+        self.skips = nn.ModuleList(nn.Conv2d(out_channels[a], out_channels[b], 1) for a, b in self.skip_pairs)
+        for conv in self.skips:
+            nn.init.zeros_(conv.weight)
+            nn.init.zeros_(conv.bias)
+
+    def raw(self, views):
+        """The heads' outputs before the sigmoid: quality as a logit, then cos 2phi, sin 2phi, width."""
+        x, kept = views, {}
+        for i, block in enumerate(self.body):
+            x = block(x)
+            kept[i] = x
+            for (source, target), conv in zip(self.skip_pairs, self.skips):
+                if target == i:
+                    x = x + conv(kept[source])
+        return self.heads(x)
 
     def forward(self, views):
-        x = self.heads(self.body(views))
-        return torch.cat([torch.sigmoid(x[:, :1]), x[:, 1:]], dim=1)
+        return squash(self.raw(views))
+
+
+def squash(raw):
+    """The network's output from `GraspNet.raw`: the sigmoid on the quality logit."""
+    return torch.cat([torch.sigmoid(raw[:, :1]), raw[:, 1:]], dim=1)
 
 
 def train_mode(model, freeze_batchnorm=False):
@@ -120,4 +153,5 @@ def subpixel(folded):
     out = GraspNet(folded.architecture).eval()
     out.body = nn.Sequential(*layers)
     out.heads = folded.heads
+    out.skips = folded.skips
     return out.eval()

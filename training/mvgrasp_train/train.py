@@ -9,7 +9,9 @@ Splits 80/20 by object instance, trains with MSE on the four maps and Adam
 RUN may be a shipped ONNX file read back by import_onnx.py).
 `--positive-weight W` weights the squared error at pixels whose target
 quality is above 0 (the painted positives) W times (1: plain MSE, the
-paper's loss). Augments each training view (augment.py), and after every epoch
+paper's loss). `--rank-weight R` adds R times `rank_loss`: minus the log
+of the softmax share of the quality logits on positive pixels, per view
+with positives (the argmax of the quality map is the metric's grasp). Augments each training view (augment.py), and after every epoch
 evaluates the paper's grasp accuracy on the held-out instances. On a GPU
 (`--device cuda`) the training views sit in device memory and whole batches
 are augmented there (augment_torch.py); on the CPU each view is augmented
@@ -30,7 +32,7 @@ import numpy as np
 import torch
 
 from . import augment, augment_torch, dataset, metric
-from .model import ARCHITECTURES, GraspNet, train_mode
+from .model import ARCHITECTURES, GraspNet, squash, train_mode
 
 
 def progress(done, total, started, extra=""):
@@ -73,6 +75,43 @@ def weighted_mse(pred, target, positive_weight=1.0):
     return torch.mean(weight * error)
 
 
+def rank_loss(scores, target_quality):
+    """How far the view's best pixel is from a positive: per view with at
+    least one positive pixel (target quality > 0), minus the log of the
+    share of the softmax over all its pixels' `scores` (the quality logits,
+    or the qualities over a temperature) that falls on positive pixels; the
+    mean over those views (0 when there are none).
+
+    The paper's accuracy takes the argmax of the quality map, and only the
+    few percent of pixels painted positive can win it; this term scores
+    that directly, where the MSE mostly learns "quality 0 almost
+    everywhere" (models/MODEL_CARD.md).
+    """
+    logits = scores.flatten(1)
+    positive = target_quality.flatten(1) > 0
+    has = positive.any(dim=1)
+    if not bool(has.any()):
+        return logits.sum() * 0.0
+    logits, positive = logits[has], positive[has]
+    everything = torch.logsumexp(logits, dim=1)
+    on_positives = torch.logsumexp(logits.masked_fill(~positive, float("-inf")), dim=1)
+    return torch.mean(everything - on_positives)
+
+
+def start_from(model, saved, name):
+    """Loads a saved run's weights into `model`: a run of the same
+    architecture, or a `narrow` run into a `skip` network (its skip
+    convolutions stay at zero, so it starts as the narrow network's function)."""
+    if saved["architecture"] == model.architecture:
+        model.load_state_dict(saved["state_dict"])
+        return
+    if (saved["architecture"], model.architecture) != ("narrow", "skip"):
+        raise SystemExit(f"--init {name} is {saved['architecture']}, not {model.architecture}")
+    missing, unexpected = model.load_state_dict(saved["state_dict"], strict=False)
+    if unexpected or any(not k.startswith("skips.") for k in missing):
+        raise SystemExit(f"--init {name}: unexpected {unexpected}, missing {missing}")
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", required=True)
@@ -87,6 +126,10 @@ def main(argv=None):
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--positive-weight", type=float, default=1.0,
                    help="weight of the squared error at positive pixels (1: plain MSE)")
+    p.add_argument("--rank-weight", type=float, default=0.0,
+                   help="weight of rank_loss (the argmax on a positive pixel) added to the MSE (0: none)")
+    p.add_argument("--rank-temperature", type=float, default=0.0,
+                   help="rank_loss on the sigmoid qualities divided by this (0: on the quality logits, unbounded)")
     p.add_argument("--device", default="cpu")
     p.add_argument("--augment", choices=("auto", "numpy", "torch"), default="auto",
                    help="numpy: per view on the CPU; torch: whole batches on --device, data held there (auto: torch off the CPU)")
@@ -126,9 +169,7 @@ def main(argv=None):
     model = GraspNet(args.architecture)
     if args.init:
         saved = torch.load(os.path.join(args.init, "model.pt"), map_location="cpu")
-        if saved["architecture"] != args.architecture:
-            raise SystemExit(f"--init {args.init} is {saved['architecture']}, not {args.architecture}")
-        model.load_state_dict(saved["state_dict"])
+        start_from(model, saved, args.init)
         args.freeze_batchnorm = args.freeze_batchnorm or saved.get("frozen_batchnorm", False)
     model = model.to(device)
     optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
@@ -172,7 +213,11 @@ def main(argv=None):
                 for group in optimiser.param_groups:
                     group["lr"] = args.lr * (0.02 + 0.98 * 0.5 * (1 + np.cos(np.pi * share)))
             optimiser.zero_grad()
-            loss = weighted_mse(model(x), y, args.positive_weight)
+            raw = model.raw(x)
+            loss = weighted_mse(squash(raw), y, args.positive_weight)
+            if args.rank_weight:
+                scores = raw[:, 0] if not args.rank_temperature else torch.sigmoid(raw[:, 0]) / args.rank_temperature
+                loss = loss + args.rank_weight * rank_loss(scores, y[:, 0])
             loss.backward()
             optimiser.step()
             losses.append(loss.detach())

@@ -90,7 +90,7 @@ class Network(unittest.TestCase):
     def test_output_is_the_input_size_with_quality_in_0_1(self):
         import torch
         from mvgrasp_train.model import GraspNet
-        for arch in ("paper", "narrow"):
+        for arch in ("paper", "narrow", "skip"):
             for size in (72, 96):
                 out = GraspNet(arch).eval()(torch.rand(3, 1, size, size))
                 self.assertEqual(tuple(out.shape), (3, 4, size, size))
@@ -120,7 +120,7 @@ class Network(unittest.TestCase):
         import torch
         from torch import nn
         from mvgrasp_train.model import fold_batchnorm, subpixel
-        for arch in ("paper", "narrow"):
+        for arch in ("paper", "narrow", "skip"):
             folded = fold_batchnorm(self.trained_a_little(arch))
             fast = subpixel(folded)
             self.assertFalse(any(isinstance(m, nn.ConvTranspose2d) for m in fast.modules()))
@@ -130,6 +130,33 @@ class Network(unittest.TestCase):
                 with torch.no_grad():
                     diff = (folded(x) - fast(x)).abs().max().item()
                 self.assertLess(diff, 1e-5, f"{arch} at {size} px")
+
+    def test_a_skip_network_starts_as_the_narrow_run_it_extends_and_exports(self):
+        import torch
+        from mvgrasp_train import export
+        from mvgrasp_train.model import GraspNet
+        from mvgrasp_train.train import start_from
+        narrow = self.trained_a_little("narrow")
+        skip = GraspNet("skip")
+        start_from(skip, {"architecture": "narrow", "state_dict": narrow.state_dict()}, "narrow run")
+        skip.eval()
+        self.assertEqual(len(skip.skips), 2)
+        self.assertTrue(all(bool((c.weight == 0).all()) for c in skip.skips))
+        x = torch.rand(2, 1, 48, 48)
+        with torch.no_grad():
+            self.assertEqual((skip(x) - narrow(x)).abs().max().item(), 0.0)
+        with self.assertRaises(SystemExit):  # only narrow extends to skip
+            start_from(GraspNet("skip"), {"architecture": "paper", "state_dict": {}}, "paper run")
+        # Trained a little, the skips carry weight and the export still matches.
+        skip = self.trained_a_little("skip")
+        self.assertTrue(any(bool((c.weight != 0).any()) for c in skip.skips))
+        contract = {"input_size_px": 48, "pixel_size_m": 0.0025, "width_scale_m": 0.2, "normalisation": "cube-v1"}
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "m.onnx")
+            ops = export.export(skip, 48, path, export.contract_metadata(contract, "t-1", "sim-test"))
+            self.assertIn("Add", ops)
+            views = np.random.default_rng(5).random((3, 1, 48, 48), dtype=np.float32)
+            self.assertLess(export.compare(skip, path, views)[0], export.TOLERANCE)
 
     def test_export_matches_pytorch_and_carries_the_contract(self):
         import onnx
@@ -200,3 +227,30 @@ class Loss(unittest.TestCase):
         positive, rest = 0.25 + 3 * 0.01, 12 * 0.01
         self.assertAlmostEqual(float(weighted_mse(pred, target, 1.0)), (positive + rest) / 16, places=6)
         self.assertAlmostEqual(float(weighted_mse(pred, target, 10.0)), (10 * positive + rest) / 16, places=6)
+
+    def test_rank_loss_is_minus_the_log_of_the_softmax_share_on_positives(self):
+        import math
+
+        import torch
+        from mvgrasp_train.train import rank_loss
+        logits = torch.zeros(2, 2, 2)
+        target = torch.zeros(2, 2, 2)
+        target[0, 0, 0] = 0.6  # view 0: one positive of four pixels
+        # Equal logits: a quarter of the softmax on the positive.
+        self.assertAlmostEqual(float(rank_loss(logits, target)), math.log(4), places=6)
+        # View 1 has no positive and counts for nothing, whatever its logits.
+        logits[1] = torch.tensor([[5.0, -3.0], [1.0, 2.0]])
+        self.assertAlmostEqual(float(rank_loss(logits, target)), math.log(4), places=6)
+        # Raising the positive's logit by 2: share e^2 / (e^2 + 3).
+        logits[0, 0, 0] = 2.0
+        self.assertAlmostEqual(float(rank_loss(logits, target)), -math.log(math.e ** 2 / (math.e ** 2 + 3)), places=6)
+        # Its gradient raises the positive and lowers the rest.
+        logits.requires_grad_(True)
+        rank_loss(logits, target).backward()
+        self.assertLess(float(logits.grad[0, 0, 0]), 0.0)
+        self.assertTrue(bool((logits.grad[0].flatten()[1:] > 0).all()))
+        self.assertTrue(bool((logits.grad[1] == 0).all()))
+        # No view with a positive: zero, and still differentiable.
+        empty = rank_loss(torch.ones(1, 2, 2, requires_grad=True), torch.zeros(1, 2, 2))
+        self.assertEqual(float(empty), 0.0)
+        empty.backward()

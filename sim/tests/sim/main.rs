@@ -515,6 +515,57 @@ fn datagen_writes_shards_its_manifest_counts() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
+#[test]
+fn datagen_refuses_a_zero_candidate_stride_or_no_angles_and_denser_candidates_find_more() {
+    use mvgrasp_sim::Error;
+    use mvgrasp_sim::dataset::{DatagenConfig, generate};
+    use mvgrasp_sim::targets::TargetConfig;
+
+    let out = std::env::temp_dir().join(format!("mvgrasp-datagen-dense-{}", std::process::id()));
+    let contract = MomentsNet::default().contract().clone();
+    let config = |stride_px, angles| DatagenConfig {
+        scenes: 1,
+        seed: 41,
+        scenarios: vec![Scenario::Isolated],
+        catalog: Catalog::of(&[Family::Box]),
+        scenes_per_shard: 1,
+        targets: TargetConfig {
+            stride_px,
+            angles,
+            ..TargetConfig::default()
+        },
+        noise: None,
+        data_version: "test".into(),
+    };
+    for (stride, angles) in [(0, 8), (3, 0)] {
+        let _ = std::fs::remove_dir_all(&out);
+        match generate(&out, &contract, &config(stride, angles), false) {
+            Err(Error::Invalid { field: "targets", .. }) => {}
+            other => panic!("stride {stride}, angles {angles}: {other:?}"),
+        }
+        assert!(!out.exists(), "nothing written for refused settings");
+    }
+    let positives = |stride, angles| {
+        let _ = std::fs::remove_dir_all(&out);
+        let report = generate(&out, &contract, &config(stride, angles), false).unwrap();
+        assert!(report.failed.is_empty(), "{:?}", report.failed);
+        let manifest: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+        assert_eq!(manifest["generator"]["stride_px"], stride);
+        assert_eq!(manifest["generator"]["angles"], angles);
+        let grasps = std::fs::read(out.join("shard_00000").join("grasps.npy")).unwrap();
+        let header = usize::from(u16::from_le_bytes([grasps[8], grasps[9]]));
+        (grasps.len() - 10 - header) / (6 * 4)
+    };
+    let (sparse, dense) = (positives(3, 8), positives(1, 16));
+    assert!(sparse > 0, "a lone box has positives");
+    assert!(
+        dense > 4 * sparse,
+        "every pixel at twice the angles: {dense} vs {sparse}"
+    );
+    let _ = std::fs::remove_dir_all(&out);
+}
+
 mod physics {
     use mvgrasp_sim::grasp::{GraspLabel, GripperModel, label_grasp};
     use mvgrasp_sim::physics::{Basket, TrialConfig, TrialOutcome, rest_to_rest, run_trial, trial};
