@@ -11,7 +11,9 @@ RUN may be a shipped ONNX file read back by import_onnx.py).
 quality is above 0 (the painted positives) W times (1: plain MSE, the
 paper's loss). `--rank-weight R` adds R times `rank_loss`: minus the log
 of the softmax share of the quality logits on positive pixels, per view
-with positives (the argmax of the quality map is the metric's grasp). Augments each training view (augment.py), and after every epoch
+with positives (the argmax of the quality map is the metric's grasp).
+`--architecture skip` may start from a `narrow` run (`start_from`).
+Augments each training view (augment.py), and after every epoch
 evaluates the paper's grasp accuracy on the held-out instances. On a GPU
 (`--device cuda`) the training views sit in device memory and whole batches
 are augmented there (augment_torch.py); on the CPU each view is augmented
