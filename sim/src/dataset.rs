@@ -54,6 +54,11 @@ pub struct DatagenConfig {
     pub noise: Option<NoiseModel>,
     /// Data version written to the manifest (the model's `data_version`).
     pub data_version: String,
+    /// 0: each scene's own draw. Otherwise the sensor noise and the
+    /// annealing are drawn again from this salt, for the same scenes and
+    /// cameras: two runs that differ only here measure how repeatable the
+    /// labels are (`training/mvgrasp_train/repeatability.py`).
+    pub label_salt: u64,
 }
 
 /// What a run produced.
@@ -152,6 +157,9 @@ fn scene_views(
         Vector3::new(0.0, 0.0, f64::from(scene.table_z)),
         top_down,
     );
+    if config.label_salt != 0 {
+        rng = SplitMix64::new(rng.next_u64() ^ config.label_salt.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    }
     let frame = render(&scene, &camera, config.noise.as_ref().map(|n| (n, &mut rng)));
     label_frame(&scene, &frame, planner, gripper, &config.targets, &mut rng)
 }
@@ -264,6 +272,7 @@ fn write_manifest(
             "families": config.catalog.names(),
             "noise": config.noise.is_some(), "stride_px": config.targets.stride_px,
             "angles": config.targets.angles, "anneal_steps": config.targets.anneal_steps,
+            "label_salt": config.label_salt, "neighbours": config.targets.neighbours,
         },
         "views": report.views,
         "views_with_positives": report.views_with_positives,

@@ -81,6 +81,15 @@ enum Command {
         /// Candidate image angles per centre, spread over 180 degrees.
         #[arg(long, default_value_t = TargetConfig::default().angles)]
         angles: usize,
+        /// Label each object as if it stood alone (where it is): the
+        /// labels its own view can tell, without its neighbours.
+        #[arg(long)]
+        without_neighbours: bool,
+        /// Draw the sensor noise and the label annealing again from this
+        /// salt, for the same scenes and cameras (0: each scene's own draw).
+        /// Two runs differing only here measure label repeatability.
+        #[arg(long, default_value_t = 0)]
+        label_salt: u64,
         /// Worker threads (default: one per core).
         #[arg(long)]
         threads: Option<usize>,
@@ -315,6 +324,8 @@ fn main() -> anyhow::Result<()> {
             no_noise,
             stride_px,
             angles,
+            without_neighbours,
+            label_salt,
             threads,
             data_version,
         } => {
@@ -335,10 +346,12 @@ fn main() -> anyhow::Result<()> {
                 targets: TargetConfig {
                     stride_px,
                     angles,
+                    neighbours: !without_neighbours,
                     ..TargetConfig::default()
                 },
                 noise: (!no_noise).then(NoiseModel::default),
                 data_version,
+                label_salt,
             };
             let started = std::time::Instant::now();
             let report = generate(&out, &contract, &config, true)?;

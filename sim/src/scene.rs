@@ -143,6 +143,16 @@ impl Scene {
         }
     }
 
+    /// This scene with object `object` alone on the table, where it is (it
+    /// becomes object 0). Labels on it say what the object's own shape
+    /// allows, whatever stands around it.
+    pub fn only(&self, object: usize) -> Scene {
+        Scene {
+            objects: vec![self.objects[object].clone()],
+            ..self.clone()
+        }
+    }
+
     /// The object whose world box, grown by `margin_m`, holds `point`; of
     /// several, the one whose box centre is nearest. How a detection (its
     /// centroid) is matched to the scene object it is.

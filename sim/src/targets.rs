@@ -45,6 +45,10 @@ pub struct TargetConfig {
     pub paint_radius_px: f32,
     /// Annealing steps per positive (0: none).
     pub anneal_steps: usize,
+    /// Whether the labels count the other objects (false: each object is
+    /// labelled as if it stood alone, where it is; the view shows only the
+    /// object, so these are the labels its view can tell).
+    pub neighbours: bool,
 }
 
 impl Default for TargetConfig {
@@ -55,6 +59,7 @@ impl Default for TargetConfig {
             width_margin_m: 0.01,
             paint_radius_px: 1.6,
             anneal_steps: 6,
+            neighbours: true,
         }
     }
 }
@@ -171,6 +176,13 @@ pub fn label_frame(
         let Some(object) = scene.object_at(&centroid, 0.01) else {
             continue;
         };
+        let alone;
+        let (label_scene, label_object) = if config.neighbours {
+            (scene, object)
+        } else {
+            alone = scene.only(object);
+            (&alone, 0)
+        };
         let view = &dv.view;
         let placement = ViewPlacement {
             view,
@@ -185,7 +197,7 @@ pub fn label_frame(
                 return None;
             }
             let pose = grasp_at(&placement, u, v, phi, width, &core_gripper, &plan.table, decode)?;
-            match label_grasp(scene, object, &pose, width, gripper) {
+            match label_grasp(label_scene, label_object, &pose, width, gripper) {
                 GraspLabel::Positive { score, .. } => Some(score),
                 _ => None,
             }

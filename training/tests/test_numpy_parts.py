@@ -13,7 +13,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from mvgrasp_train import augment, dataset, metric  # noqa: E402
+from mvgrasp_train import augment, dataset, metric, repeatability  # noqa: E402
 
 
 def line_view(l, u0, v0, phi, half):
@@ -31,23 +31,27 @@ def angle_of(maps, u, v):
     return 0.5 * np.arctan2(maps[2, v, u], maps[1, v, u])
 
 
+def turned_bars(l=32):
+    """(phi, k, (view, maps)): a bar through (14, 17) at three angles, under each of the 8 symmetries."""
+    for phi in (0.3, -1.0, 1.2):
+        view, maps = line_view(l, 14, 17, phi, 6)
+        for k in range(8):
+            yield phi, k, augment.symmetry(view, maps, k)
+
+
 class Augmentation(unittest.TestCase):
     def test_symmetries_move_pixels_and_angles_together(self):
-        l = 32
-        for phi in (0.3, -1.0, 1.2):
-            view, maps = line_view(l, 14, 17, phi, 6)
-            for k in range(8):
-                v2, m2 = augment.symmetry(view, maps, k)
-                # The painted bar still runs along the angle its pixels now carry.
-                vs, us = np.nonzero(m2[0])
-                angles = {round(float(angle_of(m2, u, v)), 6) for u, v in zip(us, vs)}
-                self.assertEqual(len(angles), 1)
-                a = angles.pop()
-                pts = np.stack([us, vs], 1).astype(float)
-                centred = pts - pts.mean(0)
-                direction = np.linalg.svd(centred)[2][0]
-                self.assertLess(metric.angle_diff(np.arctan2(direction[1], direction[0]), a), 0.1, (phi, k))
-                np.testing.assert_array_equal(v2[0] > 0, m2[0] > 0)
+        for phi, k, (v2, m2) in turned_bars():
+            # The painted bar still runs along the angle its pixels now carry.
+            vs, us = np.nonzero(m2[0])
+            angles = {round(float(angle_of(m2, u, v)), 6) for u, v in zip(us, vs)}
+            self.assertEqual(len(angles), 1)
+            a = angles.pop()
+            pts = np.stack([us, vs], 1).astype(float)
+            centred = pts - pts.mean(0)
+            direction = np.linalg.svd(centred)[2][0]
+            self.assertLess(metric.angle_diff(np.arctan2(direction[1], direction[0]), a), 0.1, (phi, k))
+            np.testing.assert_array_equal(v2[0] > 0, m2[0] > 0)
 
     def test_rescale_scales_openings_and_keeps_the_centre(self):
         view, maps = line_view(33, 16, 16, 0.0, 8)
@@ -192,6 +196,80 @@ class Reader(unittest.TestCase):
         train, held = dataset.split_by_instance(meta)
         self.assertFalse({meta[i]["instance"] for i in train} & {meta[i]["instance"] for i in held})
         self.assertAlmostEqual(len(held) / 3000, 0.2, delta=0.04)
+
+
+def labelled_twice(n=6, l=24, k=5):
+    """Two in-memory runs of the same n views: B is A turned by symmetry k, and B's last grasp moved off."""
+    rng = np.random.default_rng(3)
+    views, maps, grasps, meta = [], [], [], []
+    for i in range(n):
+        phi = float(rng.uniform(-1.5, 1.5))
+        view, m = line_view(l, 11 + i % 3, 12, phi, 5)
+        view[0, 6:18, 8:16] = np.maximum(view[0, 6:18, 8:16], 0.3)  # an uneven blob: symmetries differ
+        view[0, 6:9, 8:10] = 0.9
+        views.append(view)
+        maps.append(m)
+        grasps.append([i, 11 + i % 3, 12, phi, 0.04, 0.8 - 0.01 * i])
+        grasps.append([i, 11 + i % 3, 12, phi + 0.7, 0.04, 0.1])  # a worse positive at another angle
+        meta.append({"instance": f"{i}:0", "view": "top", "family": "box"})
+    generator = {"scenes": n, "first_seed": 1, "scenarios": ["packed"], "families": ["box"], "noise": True,
+                 "stride_px": 3, "angles": 8, "anneal_steps": 6, "label_salt": 0, "neighbours": True}
+    manifest = {"format_version": 2, "data_version": "t", "generator": generator,
+                "contract": {"input_size_px": l, "pixel_size_m": 0.0025, "width_scale_m": 0.2},
+                "gripper": {"max_width_m": 0.14, "pad_width_m": 0.027}}
+    a = dataset.Dataset(np.stack(views), np.stack(maps), np.array(grasps, np.float32), meta, manifest)
+    turned = [augment.symmetry(v, m, k) for v, m in zip(views, maps)]
+    g = np.array(grasps, np.float32)
+    g[:, 1:4] = repeatability.move_grasps(g[:, 1:4], k, l)
+    g[-2:, 1:3] = [[2, 2], [2, 2]]  # the last view's positives land elsewhere
+    b_manifest = dict(manifest, generator=dict(generator, label_salt=7))
+    b = dataset.Dataset(np.stack([t[0] for t in turned]), np.stack([t[1] for t in turned]), g, list(meta),
+                        b_manifest)
+    return a, b
+
+
+class Repeatability(unittest.TestCase):
+    def test_grasps_move_as_the_maps_do_under_every_symmetry(self):
+        for phi, k, (_, m2) in turned_bars(l=32):
+            (u, v, moved), = repeatability.move_grasps([[14, 17, phi]], k, 32)
+            self.assertGreater(m2[0, int(v), int(u)], 0, (phi, k))
+            self.assertLess(metric.angle_diff(angle_of(m2, int(u), int(v)), moved), 1e-5, (phi, k))
+
+    def test_a_turned_relabelling_is_matched_back_and_scored_view_by_view(self):
+        a, b = labelled_twice()
+        repeatability.check_pair(a, b)
+        pairs, unpaired = repeatability.pair_views(a, b)
+        self.assertEqual((len(pairs), unpaired), (6, 0))
+        result = repeatability.compare(a, b, pairs)
+        self.assertEqual(result["turned"], 6)
+        self.assertEqual(result["misaligned"], 0)
+        self.assertEqual(result["both"], 6)
+        # Every view but the last: A's best positive is B's, turned back.
+        self.assertAlmostEqual(result["oracle_accuracy"], 5 / 6)
+        self.assertAlmostEqual(result["any_positive_accuracy"], 5 / 6)
+        self.assertEqual(result["oracle_per_scenario"], {"?": {"accuracy": 5 / 6, "views": 6}})
+        # Against itself (no turn), the oracle is exact.
+        same = repeatability.compare(a, a, pairs)
+        self.assertEqual((same["turned"], same["oracle_accuracy"]), (0, 1.0))
+
+    def test_runs_that_are_not_the_same_scenes_labelled_twice_are_refused(self):
+        a, b = labelled_twice()
+        with self.assertRaisesRegex(ValueError, "same label_salt and neighbours"):
+            repeatability.check_pair(a, a)
+        a.manifest["generator"]["neighbours"] = False  # alone vs with neighbours: allowed
+        b.manifest["generator"]["label_salt"] = 0
+        repeatability.check_pair(a, b)
+        b.manifest["generator"]["first_seed"] = 2
+        with self.assertRaisesRegex(ValueError, "first_seed"):
+            repeatability.check_pair(a, b)
+
+    def test_duplicate_detections_are_not_paired(self):
+        a, b = labelled_twice()
+        b.meta[1] = dict(b.meta[0])  # two B views claim instance 0:0
+        pairs, unpaired = repeatability.pair_views(a, b)
+        self.assertEqual(len(pairs), 4)
+        self.assertNotIn(0, [p[0] for p in pairs])
+        self.assertEqual(unpaired, 2)
 
 
 if __name__ == "__main__":

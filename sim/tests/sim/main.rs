@@ -477,6 +477,7 @@ fn datagen_writes_shards_its_manifest_counts() {
         targets: TargetConfig::default(),
         noise: Some(NoiseModel::default()),
         data_version: "test".into(),
+        label_salt: 0,
     };
     let report = generate(&out, &contract, &config, false).unwrap();
     assert!(report.failed.is_empty(), "{:?}", report.failed);
@@ -536,6 +537,7 @@ fn datagen_refuses_a_zero_candidate_stride_or_no_angles_and_denser_candidates_fi
         },
         noise: None,
         data_version: "test".into(),
+        label_salt: 0,
     };
     for (stride, angles) in [(0, 8), (3, 0)] {
         let _ = std::fs::remove_dir_all(&out);
@@ -562,6 +564,134 @@ fn datagen_refuses_a_zero_candidate_stride_or_no_angles_and_denser_candidates_fi
     assert!(
         dense > 4 * sparse,
         "every pixel at twice the angles: {dense} vs {sparse}"
+    );
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn a_label_salt_redraws_noise_and_annealing_for_the_same_scenes_and_cameras() {
+    use mvgrasp_sim::dataset::{DatagenConfig, generate};
+    use mvgrasp_sim::targets::TargetConfig;
+
+    let out = std::env::temp_dir().join(format!("mvgrasp-datagen-salt-{}", std::process::id()));
+    let contract = MomentsNet::default().contract().clone();
+    // One scene labelled with a salt: (views.npy, grasps.npy rows, meta.jsonl, manifest salt).
+    let run = |noise: bool, label_salt: u64| {
+        let config = DatagenConfig {
+            scenes: 1,
+            seed: 43,
+            scenarios: vec![Scenario::Isolated],
+            catalog: Catalog::of(&[Family::Box]),
+            scenes_per_shard: 1,
+            targets: TargetConfig::default(),
+            noise: noise.then(NoiseModel::default),
+            data_version: "test".into(),
+            label_salt,
+        };
+        let _ = std::fs::remove_dir_all(&out);
+        let report = generate(&out, &contract, &config, false).unwrap();
+        assert!(report.failed.is_empty(), "{:?}", report.failed);
+        let shard = out.join("shard_00000");
+        let views = std::fs::read(shard.join("views.npy")).unwrap();
+        let grasps = std::fs::read(shard.join("grasps.npy")).unwrap();
+        let header = usize::from(u16::from_le_bytes([grasps[8], grasps[9]]));
+        let rows: Vec<[f32; 6]> = grasps[10 + header..]
+            .chunks_exact(24)
+            .map(|r| std::array::from_fn(|k| f32::from_le_bytes(r[4 * k..4 * k + 4].try_into().unwrap())))
+            .collect();
+        let meta = std::fs::read_to_string(shard.join("meta.jsonl")).unwrap();
+        let manifest: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+        assert_eq!(manifest["generator"]["label_salt"], label_salt);
+        (views, rows, meta)
+    };
+    let pixels = |rows: &[[f32; 6]]| rows.iter().map(|r| (r[0], r[1], r[2])).collect::<Vec<_>>();
+    // Which scene object and view each line is (counts change with the noise).
+    let which = |meta: &str| {
+        meta.lines()
+            .map(|l| {
+                let v: serde_json::Value = serde_json::from_str(l).unwrap();
+                (v["instance"].to_string(), v["view"].to_string())
+            })
+            .collect::<Vec<_>>()
+    };
+
+    // Salt 0 is each scene's own draw, run after run.
+    let (views, rows, meta) = run(true, 0);
+    assert!(!rows.is_empty(), "a lone box has positives");
+    assert_eq!(run(true, 0), (views.clone(), rows.clone(), meta.clone()));
+
+    // A perfect sensor: the same views and the same positive pixels, but
+    // the annealing wanders elsewhere in angle and opening.
+    let (clean, clean_rows, clean_meta) = run(false, 0);
+    let (salted, salted_rows, salted_meta) = run(false, 9);
+    assert_eq!(salted, clean);
+    assert_eq!(salted_meta, clean_meta);
+    assert_eq!(pixels(&salted_rows), pixels(&clean_rows));
+    assert_ne!(salted_rows, clean_rows, "annealing redrawn");
+
+    // With noise, the same scene and camera seen through other noise: the
+    // same objects and views, different depth pixels.
+    let (noisy, _, noisy_meta) = run(true, 9);
+    assert_ne!(noisy, views, "noise redrawn");
+    assert_eq!(which(&noisy_meta), which(&meta));
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn labels_without_neighbours_keep_the_views_and_lose_no_positive() {
+    use mvgrasp_sim::dataset::{DatagenConfig, generate};
+    use mvgrasp_sim::targets::TargetConfig;
+
+    let out = std::env::temp_dir().join(format!("mvgrasp-datagen-alone-{}", std::process::id()));
+    let contract = MomentsNet::default().contract().clone();
+    // Packed scenes, labelled with and without the other objects: (views.npy, positives per view).
+    let run = |neighbours: bool| {
+        let config = DatagenConfig {
+            scenes: 2,
+            seed: 44,
+            scenarios: vec![Scenario::Packed],
+            catalog: Catalog::of(&[Family::Box, Family::Cylinder]),
+            scenes_per_shard: 2,
+            targets: TargetConfig {
+                neighbours,
+                ..TargetConfig::default()
+            },
+            noise: Some(NoiseModel::default()),
+            data_version: "test".into(),
+            label_salt: 0,
+        };
+        let _ = std::fs::remove_dir_all(&out);
+        let report = generate(&out, &contract, &config, false).unwrap();
+        assert!(report.failed.is_empty(), "{:?}", report.failed);
+        let manifest: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+        assert_eq!(manifest["generator"]["neighbours"], neighbours);
+        let shard = out.join("shard_00000");
+        let positives: Vec<u64> = std::fs::read_to_string(shard.join("meta.jsonl"))
+            .unwrap()
+            .lines()
+            .map(|l| {
+                serde_json::from_str::<serde_json::Value>(l).unwrap()["positives"]
+                    .as_u64()
+                    .unwrap()
+            })
+            .collect();
+        (std::fs::read(shard.join("views.npy")).unwrap(), positives)
+    };
+    let (views, with) = run(true);
+    let (alone_views, alone) = run(false);
+    assert_eq!(alone_views, views, "the same frames and views");
+    assert_eq!(alone.len(), with.len());
+    // A neighbour can only refuse a candidate, never make one hold.
+    assert!(
+        with.iter().zip(&alone).all(|(w, a)| a >= w),
+        "{with:?} vs {alone:?}"
+    );
+    let (w, a): (u64, u64) = (with.iter().sum(), alone.iter().sum());
+    assert!(
+        a > w,
+        "packed objects refuse some grasps to their neighbours: {a} vs {w}"
     );
     let _ = std::fs::remove_dir_all(&out);
 }
