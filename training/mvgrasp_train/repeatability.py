@@ -163,7 +163,7 @@ def model_accuracy(model, a, b, kept):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--a", required=True, help="one sim datagen run")
-    p.add_argument("--b", required=True, help="the same scenes with another --label-salt")
+    p.add_argument("--b", required=True, help="the same scenes with another --label-salt, or --without-neighbours")
     p.add_argument("--hold-out-families", default="bowl",
                    help="families left out, comma-separated (default bowl, as in training)")
     p.add_argument("--min-iou", type=float, default=0.5,

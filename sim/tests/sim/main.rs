@@ -516,6 +516,49 @@ fn datagen_writes_shards_its_manifest_counts() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
+/// Test-sized `sim datagen` settings: one scene per shard, no noise, salt 0.
+fn small_datagen(
+    scenes: u64,
+    seed: u64,
+    scenario: Scenario,
+    families: &[Family],
+) -> mvgrasp_sim::dataset::DatagenConfig {
+    mvgrasp_sim::dataset::DatagenConfig {
+        scenes,
+        seed,
+        scenarios: vec![scenario],
+        catalog: Catalog::of(families),
+        scenes_per_shard: scenes,
+        targets: mvgrasp_sim::targets::TargetConfig::default(),
+        noise: None,
+        data_version: "test".into(),
+        label_salt: 0,
+    }
+}
+
+/// Runs `config` into a fresh `out` (no scene may fail) and returns its manifest.
+fn datagen_into(out: &std::path::Path, config: &mvgrasp_sim::dataset::DatagenConfig) -> serde_json::Value {
+    let _ = std::fs::remove_dir_all(out);
+    let contract = MomentsNet::default().contract().clone();
+    let report = mvgrasp_sim::dataset::generate(out, &contract, config, false).unwrap();
+    assert!(report.failed.is_empty(), "{:?}", report.failed);
+    serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap()
+}
+
+/// The data of an `.npy` file: past its 10-byte preamble and header.
+fn npy_data(bytes: &[u8]) -> &[u8] {
+    &bytes[10 + usize::from(u16::from_le_bytes([bytes[8], bytes[9]]))..]
+}
+
+/// A shard's `meta.jsonl`, a value per view.
+fn meta_lines(shard: &std::path::Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(shard.join("meta.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
 #[test]
 fn datagen_refuses_a_zero_candidate_stride_or_no_angles_and_denser_candidates_find_more() {
     use mvgrasp_sim::Error;
@@ -525,19 +568,12 @@ fn datagen_refuses_a_zero_candidate_stride_or_no_angles_and_denser_candidates_fi
     let out = std::env::temp_dir().join(format!("mvgrasp-datagen-dense-{}", std::process::id()));
     let contract = MomentsNet::default().contract().clone();
     let config = |stride_px, angles| DatagenConfig {
-        scenes: 1,
-        seed: 41,
-        scenarios: vec![Scenario::Isolated],
-        catalog: Catalog::of(&[Family::Box]),
-        scenes_per_shard: 1,
         targets: TargetConfig {
             stride_px,
             angles,
             ..TargetConfig::default()
         },
-        noise: None,
-        data_version: "test".into(),
-        label_salt: 0,
+        ..small_datagen(1, 41, Scenario::Isolated, &[Family::Box])
     };
     for (stride, angles) in [(0, 8), (3, 0)] {
         let _ = std::fs::remove_dir_all(&out);
@@ -548,16 +584,11 @@ fn datagen_refuses_a_zero_candidate_stride_or_no_angles_and_denser_candidates_fi
         assert!(!out.exists(), "nothing written for refused settings");
     }
     let positives = |stride, angles| {
-        let _ = std::fs::remove_dir_all(&out);
-        let report = generate(&out, &contract, &config(stride, angles), false).unwrap();
-        assert!(report.failed.is_empty(), "{:?}", report.failed);
-        let manifest: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+        let manifest = datagen_into(&out, &config(stride, angles));
         assert_eq!(manifest["generator"]["stride_px"], stride);
         assert_eq!(manifest["generator"]["angles"], angles);
         let grasps = std::fs::read(out.join("shard_00000").join("grasps.npy")).unwrap();
-        let header = usize::from(u16::from_le_bytes([grasps[8], grasps[9]]));
-        (grasps.len() - 10 - header) / (6 * 4)
+        npy_data(&grasps).len() / (6 * 4)
     };
     let (sparse, dense) = (positives(3, 8), positives(1, 16));
     assert!(sparse > 0, "a lone box has positives");
@@ -570,49 +601,32 @@ fn datagen_refuses_a_zero_candidate_stride_or_no_angles_and_denser_candidates_fi
 
 #[test]
 fn a_label_salt_redraws_noise_and_annealing_for_the_same_scenes_and_cameras() {
-    use mvgrasp_sim::dataset::{DatagenConfig, generate};
-    use mvgrasp_sim::targets::TargetConfig;
+    use mvgrasp_sim::dataset::DatagenConfig;
 
     let out = std::env::temp_dir().join(format!("mvgrasp-datagen-salt-{}", std::process::id()));
-    let contract = MomentsNet::default().contract().clone();
-    // One scene labelled with a salt: (views.npy, grasps.npy rows, meta.jsonl, manifest salt).
+    // One scene labelled with a salt: (views.npy, grasps.npy rows, meta.jsonl).
     let run = |noise: bool, label_salt: u64| {
         let config = DatagenConfig {
-            scenes: 1,
-            seed: 43,
-            scenarios: vec![Scenario::Isolated],
-            catalog: Catalog::of(&[Family::Box]),
-            scenes_per_shard: 1,
-            targets: TargetConfig::default(),
             noise: noise.then(NoiseModel::default),
-            data_version: "test".into(),
             label_salt,
+            ..small_datagen(1, 43, Scenario::Isolated, &[Family::Box])
         };
-        let _ = std::fs::remove_dir_all(&out);
-        let report = generate(&out, &contract, &config, false).unwrap();
-        assert!(report.failed.is_empty(), "{:?}", report.failed);
+        let manifest = datagen_into(&out, &config);
+        assert_eq!(manifest["generator"]["label_salt"], label_salt);
         let shard = out.join("shard_00000");
         let views = std::fs::read(shard.join("views.npy")).unwrap();
         let grasps = std::fs::read(shard.join("grasps.npy")).unwrap();
-        let header = usize::from(u16::from_le_bytes([grasps[8], grasps[9]]));
-        let rows: Vec<[f32; 6]> = grasps[10 + header..]
+        let rows: Vec<[f32; 6]> = npy_data(&grasps)
             .chunks_exact(24)
             .map(|r| std::array::from_fn(|k| f32::from_le_bytes(r[4 * k..4 * k + 4].try_into().unwrap())))
             .collect();
-        let meta = std::fs::read_to_string(shard.join("meta.jsonl")).unwrap();
-        let manifest: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
-        assert_eq!(manifest["generator"]["label_salt"], label_salt);
-        (views, rows, meta)
+        (views, rows, meta_lines(&shard))
     };
     let pixels = |rows: &[[f32; 6]]| rows.iter().map(|r| (r[0], r[1], r[2])).collect::<Vec<_>>();
     // Which scene object and view each line is (counts change with the noise).
-    let which = |meta: &str| {
-        meta.lines()
-            .map(|l| {
-                let v: serde_json::Value = serde_json::from_str(l).unwrap();
-                (v["instance"].to_string(), v["view"].to_string())
-            })
+    let which = |meta: &[serde_json::Value]| {
+        meta.iter()
+            .map(|v| (v["instance"].to_string(), v["view"].to_string()))
             .collect::<Vec<_>>()
     };
 
@@ -640,42 +654,26 @@ fn a_label_salt_redraws_noise_and_annealing_for_the_same_scenes_and_cameras() {
 
 #[test]
 fn labels_without_neighbours_keep_the_views_and_lose_no_positive() {
-    use mvgrasp_sim::dataset::{DatagenConfig, generate};
+    use mvgrasp_sim::dataset::DatagenConfig;
     use mvgrasp_sim::targets::TargetConfig;
 
     let out = std::env::temp_dir().join(format!("mvgrasp-datagen-alone-{}", std::process::id()));
-    let contract = MomentsNet::default().contract().clone();
     // Packed scenes, labelled with and without the other objects: (views.npy, positives per view).
     let run = |neighbours: bool| {
         let config = DatagenConfig {
-            scenes: 2,
-            seed: 44,
-            scenarios: vec![Scenario::Packed],
-            catalog: Catalog::of(&[Family::Box, Family::Cylinder]),
-            scenes_per_shard: 2,
             targets: TargetConfig {
                 neighbours,
                 ..TargetConfig::default()
             },
             noise: Some(NoiseModel::default()),
-            data_version: "test".into(),
-            label_salt: 0,
+            ..small_datagen(2, 44, Scenario::Packed, &[Family::Box, Family::Cylinder])
         };
-        let _ = std::fs::remove_dir_all(&out);
-        let report = generate(&out, &contract, &config, false).unwrap();
-        assert!(report.failed.is_empty(), "{:?}", report.failed);
-        let manifest: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+        let manifest = datagen_into(&out, &config);
         assert_eq!(manifest["generator"]["neighbours"], neighbours);
         let shard = out.join("shard_00000");
-        let positives: Vec<u64> = std::fs::read_to_string(shard.join("meta.jsonl"))
-            .unwrap()
-            .lines()
-            .map(|l| {
-                serde_json::from_str::<serde_json::Value>(l).unwrap()["positives"]
-                    .as_u64()
-                    .unwrap()
-            })
+        let positives: Vec<u64> = meta_lines(&shard)
+            .iter()
+            .map(|v| v["positives"].as_u64().unwrap())
             .collect();
         (std::fs::read(shard.join("views.npy")).unwrap(), positives)
     };
