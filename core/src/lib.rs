@@ -65,7 +65,7 @@ pub use pipeline::{
     DebugView, DetectedObject, Plan, PlanOptions, Planner, PlannerConfig, Prepared, Refusals, SceneInput,
     Segmentation, StageTimings, ViewReport, approach_of,
 };
-pub use segment::{ClusterConfig, CreaseConfig, TableConfig, TablePlane};
+pub use segment::{ClusterConfig, CreaseConfig, Reattach, TableConfig, TablePlane};
 pub use select::ViewPolicy;
 pub use sensor::{CloudFrame, DepthEncoding, DepthFrame, FieldOfView, Intrinsics, PointCloud, SensorInput};
 pub use view::{OrthoView, ViewAxis};

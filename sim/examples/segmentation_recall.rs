@@ -2,10 +2,10 @@
 //! scenario, with the crease split off and on, on the scenes and cameras of
 //! `sim eval --seed 800000` (the tuning seeds; first frame of each episode).
 //!
-//!     cargo run --release -p mvgrasp-sim --example segmentation_recall [EPISODES] [PNG_DIR|-] [CREASE]
+//!     cargo run --release -p mvgrasp-sim --example segmentation_recall [EPISODES] [PNG_DIR|-] [CREASE] [SEED]
 //!
 //! `CREASE` is the split compared with none, in `sim eval --crease-split`'s
-//! form (default `on`).
+//! form (default `on`); `SEED` the first episode's seed (default 800000).
 //!
 //! Scored on pixels, against the renderer's labels, over the pixels the
 //! planner kept as object points:
@@ -87,6 +87,7 @@ fn main() -> anyhow::Result<()> {
     };
     let crease = crease_setting(&args.next().unwrap_or_else(|| "on".into()))?;
     let planners = [planner(None)?, planner(crease)?];
+    let first_seed: u64 = args.next().map(|a| a.parse()).transpose()?.unwrap_or(800_000);
     // The seen families of results/seen-families (every family but the bowl).
     let families: Vec<Family> = Family::ALL.into_iter().filter(|f| *f != Family::Bowl).collect();
     let catalog = Catalog::of(&families);
@@ -101,7 +102,7 @@ fn main() -> anyhow::Result<()> {
         Scenario::Clutter,
     ] {
         let mut scores = [Score::default(), Score::default()];
-        for seed in 800_000..800_000 + episodes {
+        for seed in first_seed..first_seed + episodes {
             let (scene, camera) = episode_scene(scenario, seed, &catalog)?;
             // The first frame of the episode, with `sim eval`'s noise draw.
             let mut rng = SplitMix64::new(seed ^ 0x0153_EAB0);

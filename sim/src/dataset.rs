@@ -27,6 +27,7 @@ use rayon::prelude::*;
 
 use crate::camera::{Camera, NoiseModel, render};
 use crate::error::{Error, Result};
+use crate::eval::crease_text;
 use crate::grasp::GripperModel;
 use crate::objects::Catalog;
 use crate::scene::{Scenario, Scene};
@@ -273,6 +274,7 @@ fn write_manifest(
             "noise": config.noise.is_some(), "stride_px": config.targets.stride_px,
             "angles": config.targets.angles, "anneal_steps": config.targets.anneal_steps,
             "label_salt": config.label_salt, "neighbours": config.targets.neighbours,
+            "crease_split": crease_text(PlannerConfig::default().cluster.crease.as_ref()),
         },
         "views": report.views,
         "views_with_positives": report.views_with_positives,

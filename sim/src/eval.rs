@@ -46,7 +46,9 @@ use std::time::Instant;
 use mvgrasp_client::request::{depth_request, pose_from_message};
 use mvgrasp_client::{PlannerClient, pb};
 use mvgrasp_core::rng::SplitMix64;
-use mvgrasp_core::{CreaseConfig, FieldOfView, GraspNet, PlanOptions, Planner, ViewPolicy, Workspace};
+use mvgrasp_core::{
+    CreaseConfig, FieldOfView, GraspNet, PlanOptions, Planner, Reattach, ViewPolicy, Workspace,
+};
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use parry3d::math::Pose;
 
@@ -138,8 +140,12 @@ impl Setting {
 }
 
 /// The crease split from its text form (`sim eval --crease-split`): `on`
-/// (the defaults), `off`, or `SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART`
-/// (the fields of [`CreaseConfig`], the valley in millimetres).
+/// (the defaults), `off`, `split-only` (the defaults without step 6, parts
+/// hanging on another joining it), or
+/// `SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART` (the fields of
+/// [`CreaseConfig`], the valley in millimetres; step 6 with its defaults),
+/// followed by `:AREA_CM2:SHARE:OUTLINE:STEP_MM` for step 6 ([`Reattach`]'s
+/// fields; an area of 0 turns it off).
 pub fn crease_setting(text: &str) -> Result<Option<CreaseConfig>> {
     let bad = |reason: String| Error::Invalid {
         field: "crease-split",
@@ -148,13 +154,24 @@ pub fn crease_setting(text: &str) -> Result<Option<CreaseConfig>> {
     match text {
         "on" => return Ok(Some(CreaseConfig::default())),
         "off" => return Ok(None),
+        "split-only" => {
+            return Ok(Some(CreaseConfig {
+                reattach: None,
+                ..CreaseConfig::default()
+            }));
+        }
         _ => {}
     }
+    let usage = || {
+        bad(format!(
+            "{text:?} is not on, off, split-only, SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART \
+             or that followed by :AREA_CM2:SHARE:OUTLINE:STEP_MM"
+        ))
+    };
     let fields: Vec<&str> = text.split(':').collect();
-    let [smooth, baseline, valley_mm, ratio, min_part] = fields[..] else {
-        return Err(bad(format!(
-            "{text:?} is not on, off or SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART"
-        )));
+    let (split, attach) = fields.split_at(fields.len().min(5));
+    let [smooth, baseline, valley_mm, ratio, min_part] = split[..] else {
+        return Err(usage());
     };
     let number = |name: &str, v: &str| -> Result<f64> {
         v.parse::<f64>()
@@ -172,11 +189,48 @@ pub fn crease_setting(text: &str) -> Result<Option<CreaseConfig>> {
         min_valley_m: (number("valley depth", valley_mm)? / 1000.0) as f32,
         min_valley_ratio: number("ratio", ratio)? as f32,
         min_part_points: whole("smallest part", min_part)?,
+        reattach: match attach {
+            [] => Some(Reattach::default()),
+            [area_cm2, share, outline, step_mm] => Some(Reattach {
+                max_area_m2: (number("area", area_cm2)? / 1e4) as f32,
+                max_share: number("share", share)? as f32,
+                min_outline_share: number("outline share", outline)? as f32,
+                max_step_m: (number("step", step_mm)? / 1000.0) as f32,
+            })
+            .filter(|r| r.max_area_m2 > 0.0),
+            _ => return Err(usage()),
+        },
     };
     if config.baseline_px == 0 {
         return Err(bad(format!("{text:?}: the baseline must be at least 1 px")));
     }
     Ok(Some(config))
+}
+
+/// The text form of a crease split, as [`crease_setting`] reads it back
+/// (recorded in a dataset's manifest: the segmentation made its views).
+pub fn crease_text(crease: Option<&CreaseConfig>) -> String {
+    let Some(c) = crease else {
+        return "off".into();
+    };
+    let split = format!(
+        "{}:{}:{}:{}:{}",
+        c.smooth_radius_px,
+        c.baseline_px,
+        c.min_valley_m * 1000.0,
+        c.min_valley_ratio,
+        c.min_part_points
+    );
+    match &c.reattach {
+        None => format!("{split}:0:0:0:0"),
+        Some(r) => format!(
+            "{split}:{}:{}:{}:{}",
+            r.max_area_m2 * 1e4,
+            r.max_share,
+            r.min_outline_share,
+            r.max_step_m * 1000.0
+        ),
+    }
 }
 
 /// Why an attempt failed.

@@ -152,8 +152,9 @@ enum Command {
         #[arg(long, default_value_t = 2)]
         snapshots: usize,
         /// The in-process planner's crease split: `on` (the defaults), `off`,
-        /// or `SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART` to try others
-        /// (`CreaseConfig`).
+        /// `split-only` (no re-joining of parts that hang on another), or
+        /// `SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART[:AREA_CM2:SHARE:OUTLINE:STEP_MM]`
+        /// to try others (`CreaseConfig`, `Reattach`).
         #[arg(long, default_value = "on")]
         crease_split: String,
     },

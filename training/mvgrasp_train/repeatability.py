@@ -115,7 +115,7 @@ def compare(a, b, pairs, min_iou=0.5):
     pad_m = a.manifest["gripper"]["pad_width_m"]
     counts = {"pairs": len(pairs), "turned": 0, "misaligned": 0, "both": 0, "only_a": 0, "only_b": 0,
               "neither": 0}
-    oracle, any_positive, kept, scenario = [], [], [], []
+    oracle, any_positive, kept, groups = [], [], [], []
     for ia, ib in pairs:
         k, iou = align(a.views[ia, 0], b.views[ib, 0])
         if iou < min_iou:
@@ -133,20 +133,25 @@ def compare(a, b, pairs, min_iou=0.5):
         hits = [metric.grasp_correct((g[0], g[1], g[2], g[3]), tb, pixel_m, pad_m) for g in ta]
         oracle.append(hits[int(np.argmax(ta[:, 4]))])
         any_positive.append(float(np.mean(hits)))
-        scenario.append(a.meta[ia].get("scenario", "?"))
+        groups.append((a.meta[ia].get("scenario", "?"), a.meta[ia].get("view", "?")))
     with_a = counts["both"] + counts["only_a"]
     return {
         **counts,
         "oracle_accuracy": float(np.mean(oracle)) if oracle else float("nan"),
         "any_positive_accuracy": float(np.mean(any_positive)) if any_positive else float("nan"),
         "b_empty_where_a_has_positives": counts["only_a"] / with_a if with_a else float("nan"),
-        "oracle_per_scenario": {
-            name: {"accuracy": float(np.mean([o for o, s in zip(oracle, scenario) if s == name])),
-                   "views": scenario.count(name)}
-            for name in sorted(set(scenario))},
+        "oracle_per_scenario": per_group(oracle, [g[0] for g in groups]),
+        "oracle_per_view": per_group(oracle, [g[1] for g in groups]),
         "min_iou": min_iou,
         "kept": kept,
     }
+
+
+def per_group(hits, names):
+    """{name: {accuracy, views}} of `hits` grouped by the parallel list `names`."""
+    return {name: {"accuracy": float(np.mean([h for h, n in zip(hits, names) if n == name])),
+                   "views": names.count(name)}
+            for name in sorted(set(names))}
 
 
 def model_accuracy(model, a, b, kept):
@@ -187,8 +192,9 @@ def main(argv=None):
           f"neither {result['neither']}")
     print(f"oracle (A's best positive judged against B): {100 * result['oracle_accuracy']:.1f}%")
     print(f"any A positive judged against B:             {100 * result['any_positive_accuracy']:.1f}%")
-    print("oracle per scenario: " + ", ".join(f"{name} {100 * r['accuracy']:.1f}% of {r['views']}"
-                                              for name, r in result["oracle_per_scenario"].items()))
+    for group in ("scenario", "view"):
+        print(f"oracle per {group}: " + ", ".join(f"{name} {100 * r['accuracy']:.1f}% of {r['views']}"
+                                                for name, r in result[f"oracle_per_{group}"].items()))
     if args.model:
         print(f"{args.model} on A: {100 * result['model']['a']:.1f}%, on B: {100 * result['model']['b']:.1f}%")
     if args.json:

@@ -7,5 +7,5 @@ mod table;
 mod union_find;
 
 pub use cluster::{ClusterConfig, MAX_DENSE_CELLS, euclidean_clusters, fixed_order};
-pub use crease::{CreaseConfig, ImagePoints, split_at_creases};
+pub use crease::{CreaseConfig, ImagePoints, Reattach, split_at_creases};
 pub use table::{TableConfig, TablePlane, fit_table};
