@@ -1,12 +1,16 @@
 """Held-out grasp accuracy of ONNX models on one dataset, side by side.
 
     python3 -m mvgrasp_train.evaluate_onnx --data DATASET MODEL.onnx [MODEL.onnx ...] \
-        [--hold-out-families bowl] [--scenarios isolated,packed] [--all-views]
+        [--hold-out-families bowl] [--scenarios isolated,packed] [--families mug] [--all-views] \
+        [--misses MISSES.png [--misses-count 6]]
 
 Runs each model through onnxruntime (CPU) on the held-out instances of
 DATASET (the 80/20 split by instance of dataset.py) and prints the paper's
-accuracy (metric.py) overall, per view direction and per scenario, for the
-seen families and, apart, for the families named by --hold-out-families.
+accuracy (metric.py) overall, per view direction, per scenario and per
+family, for the seen families and, apart, for the families named by
+--hold-out-families. `--misses` draws the first model's first missed views
+(view, target quality, predicted quality; the chosen grasp and the
+positives marked).
 Use it to compare models trained on different data on the same views: a
 model never saw the instances of another dataset made with other seeds, so
 on a dataset generated with seeds no model trained on, `--all-views` counts
@@ -32,13 +36,8 @@ def predict(path, views, batch=256):
 
 def report(pred, ds, indices):
     result = metric.evaluate(pred, ds, indices)
-    scenarios = {}
-    for scenario in sorted({ds.meta[i].get("scenario", "?") for i in indices}):
-        picked = [k for k, i in enumerate(indices) if ds.meta[i].get("scenario", "?") == scenario]
-        if picked:
-            part = metric.evaluate(pred[picked], ds, [indices[k] for k in picked])
-            scenarios[scenario] = {"accuracy": part["accuracy"], "views": part["views_with_positives"]}
-    result["per_scenario"] = scenarios
+    result["per_scenario"] = metric.evaluate_by(pred, ds, indices, "scenario")
+    result["per_family"] = metric.evaluate_by(pred, ds, indices, "family")
     return result
 
 
@@ -50,6 +49,10 @@ def main(argv=None):
     p.add_argument("--scenarios", default="", help="only views of these scenarios (comma-separated)")
     p.add_argument("--all-views", action="store_true",
                    help="every view, not the held-out split (for data made with seeds no model trained on)")
+    p.add_argument("--families", default="", help="only views of these families (comma-separated)")
+    p.add_argument("--misses", help="draw the first model's first missed views of seen families here (PNG; "
+                                    "needs matplotlib)")
+    p.add_argument("--misses-count", type=int, default=6)
     args = p.parse_args(argv)
     ds = dataset.load(args.data, mmap=True)
     _, held = dataset.split_by_instance(ds.meta)
@@ -58,15 +61,26 @@ def main(argv=None):
     scenarios = {s for s in args.scenarios.split(",") if s}
     if scenarios:
         held = [i for i in held if ds.meta[i].get("scenario") in scenarios]
+    only = {f for f in args.families.split(",") if f}
+    if only:
+        held = [i for i in held if ds.meta[i]["family"] in only]
     unseen = {f for f in args.hold_out_families.split(",") if f}
     # Every view of an unseen family counts, not only its held-out share: no model trained on them.
     families = [i for i, m in enumerate(ds.meta) if m["family"] in unseen]
     if scenarios:
         families = [i for i in families if ds.meta[i].get("scenario") in scenarios]
+    if only:
+        families = [i for i in families if ds.meta[i]["family"] in only]
     seen = [i for i in held if ds.meta[i]["family"] not in unseen]
     results = {}
-    for path in args.models:
-        results[path] = {"seen_families": report(predict(path, ds.views[seen]), ds, seen)}
+    for n, path in enumerate(args.models):
+        pred = predict(path, ds.views[seen])
+        results[path] = {"seen_families": report(pred, ds, seen)}
+        if args.misses and n == 0:
+            from . import plot
+            picked = metric.misses(pred, ds, seen)[:args.misses_count]
+            plot.draw_views(args.misses, ds, [seen[k] for k in picked], pred[picked],
+                            f"{path}: first {len(picked)} missed views")
         if families:
             results[path]["unseen_families"] = report(predict(path, ds.views[families]), ds, families)
     print(json.dumps(results, indent=1))

@@ -147,3 +147,29 @@ def evaluate(pred_maps, ds, indices, threshold=0.5):
         "false_alarm_rate": alarms / empty if empty else float("nan"),
         "false_alarm_threshold": threshold,
     }
+
+
+def evaluate_by(pred_maps, ds, indices, key):
+    """`evaluate` per value of `ds.meta[i][key]` (scenario, family, ...):
+    {value: {"accuracy", "views"}}, counting views with positives."""
+    groups = {}
+    for k, i in enumerate(indices):
+        groups.setdefault(ds.meta[i].get(key, "?"), []).append(k)
+    out = {}
+    for name in sorted(groups):
+        picked = groups[name]
+        part = evaluate(pred_maps[picked], ds, [indices[k] for k in picked])
+        out[name] = {"accuracy": part["accuracy"], "views": part["views_with_positives"]}
+    return out
+
+
+def misses(pred_maps, ds, indices):
+    """Positions k (into `indices`) of the views with positives whose best
+    predicted grasp matches none of them."""
+    c = ds.contract
+    pixel_m, width_scale = c["pixel_size_m"], c["width_scale_m"]
+    pad_m = ds.manifest["gripper"]["pad_width_m"]
+    u, v, phi, width, _ = decode(pred_maps)
+    return [k for k, i in enumerate(indices)
+            if len(ds.grasps_of(i))
+            and not grasp_correct((u[k], v[k], phi[k], width[k] * width_scale), ds.grasps_of(i), pixel_m, pad_m)]

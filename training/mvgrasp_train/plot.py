@@ -7,6 +7,9 @@ one after the other with a dotted line where a stage starts.
 
 Left: train and held-out loss per epoch; right: held-out grasp accuracy
 (overall solid, per view dotted). Needs matplotlib.
+
+`draw_views` draws views with their target and predicted quality
+(`evaluate_onnx --misses`).
 """
 
 import json
@@ -31,6 +34,32 @@ def read(runs):
             e["epoch"] = len(log) + 1
             log.append(e)
     return log, starts
+
+
+def draw_views(out, ds, indices, pred, title):
+    """One row per view `indices[k]` of `ds`: the view, its target quality
+    and `pred[k]`'s quality; the positives as cyan dots, the predicted
+    grasp (argmax quality) as a red cross."""
+    from . import metric
+    u, v, _, _, q = metric.decode(pred)
+    rows = max(len(indices), 1)
+    fig, axes = plt.subplots(rows, 3, figsize=(7.5, 2.5 * rows), squeeze=False)
+    for r, i in enumerate(indices):
+        m, target = ds.meta[i], ds.maps[i][0]
+        panels = [(ds.views[i][0], "gray", None, f"{m['family']} {m['view']} {m.get('scenario', '')}"),
+                  (target, "viridis", 0.8, f"target quality (max {target.max():.2f})"),
+                  (pred[r][0], "viridis", 0.8, f"predicted (max {q[r]:.2f})")]
+        truth = ds.grasps_of(i)
+        for ax, (image, cmap, vmax, name) in zip(axes[r], panels):
+            ax.imshow(image, cmap=cmap, vmin=0, vmax=vmax)
+            ax.plot(truth[:, 0], truth[:, 1], "c.", ms=1.5)
+            ax.plot([u[r]], [v[r]], "r+", ms=10)
+            ax.set_title(name, fontsize=7)
+            ax.axis("off")
+    fig.suptitle(title, fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out, dpi=80)
+    plt.close(fig)
 
 
 def main(argv):

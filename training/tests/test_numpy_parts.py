@@ -159,6 +159,22 @@ class Reader(unittest.TestCase):
             ds.maps[1, :, 1, 1] = [0.5, 1.0, 0.0, 0.2]
             self.assertTrue(any("painted" in p for p in dataset.check(ds)))
 
+    def test_accuracy_per_family_and_the_missed_views(self):
+        with tempfile.TemporaryDirectory() as root:
+            write_dataset(root)
+            ds = dataset.load(root)
+            ds.meta[2]["family"] = "mug"
+            pred = np.array(ds.maps)
+            # View 2's best grasp turns 90 degrees on its only positive: a miss.
+            pred[2, :, 4, 3] = [0.9, -1.0, 0.0, 0.25]
+            self.assertEqual(metric.misses(pred, ds, [0, 1, 2]), [2])
+            self.assertEqual(metric.misses(pred[[2, 0]], ds, [2, 0]), [0], "positions into the given indices")
+            self.assertEqual(metric.evaluate_by(pred, ds, [0, 1, 2], "family"),
+                             {"box": {"accuracy": 1.0, "views": 1}, "mug": {"accuracy": 0.0, "views": 1}})
+            # Views without positives count in no group's accuracy, and a missing key is "?".
+            by_scenario = metric.evaluate_by(pred, ds, [0, 1, 2], "scenario")
+            self.assertEqual(by_scenario, {"?": {"accuracy": 0.5, "views": 2}})
+
     def test_rejects_another_format_version(self):
         with tempfile.TemporaryDirectory() as root:
             write_dataset(root)
