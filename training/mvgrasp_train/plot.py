@@ -57,7 +57,7 @@ def draw_views(out, ds, indices, pred, title):
             ax.set_title(name, fontsize=7)
             ax.axis("off")
     fig.suptitle(title, fontsize=8)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.25 / (2.5 * rows)))
     fig.savefig(out, dpi=80)
     plt.close(fig)
 
