@@ -12,10 +12,8 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use mvgrasp_core::rng::SplitMix64;
-use mvgrasp_core::{ClusterConfig, GraspNet, MomentsNet, Planner, PlannerConfig};
-use mvgrasp_sim::camera::{NoiseModel, render};
-use mvgrasp_sim::eval::{crease_setting, episode_scene};
+use mvgrasp_core::{GraspNet, MomentsNet};
+use mvgrasp_sim::eval::{episode_first_frame, planner_with_crease};
 use mvgrasp_sim::objects::{Catalog, Family};
 use mvgrasp_sim::scene::Scenario;
 
@@ -24,32 +22,20 @@ const FRAMES: u64 = 8;
 
 fn segment(c: &mut Criterion) {
     let contract = MomentsNet::default().contract().clone();
-    let planner = |crease: &str| {
-        let config = PlannerConfig {
-            cluster: ClusterConfig {
-                crease: crease_setting(crease).expect("a crease setting"),
-                ..ClusterConfig::default()
-            },
-            ..PlannerConfig::default()
-        };
-        Planner::new(config, contract.clone()).expect("planner")
-    };
     let families: Vec<Family> = Family::ALL.into_iter().filter(|f| *f != Family::Bowl).collect();
     let catalog = Catalog::of(&families);
     for scenario in [Scenario::Pile, Scenario::Clutter] {
-        // Depth frames as `sim eval` draws them (its noise seed).
+        // The episodes' first frames, as `sim eval` draws them.
         let frames: Vec<_> = (800_000..800_000 + FRAMES)
             .map(|seed| {
-                let (scene, camera) = episode_scene(scenario, seed, &catalog).expect("scene");
-                let mut rng = SplitMix64::new(seed ^ 0x0153_EAB0);
-                let frame = render(&scene, &camera, Some((&NoiseModel::default(), &mut rng)));
+                let (scene, frame) = episode_first_frame(scenario, seed, &catalog).expect("scene");
                 let bytes = frame.depth_le_bytes();
                 (frame, bytes, scene.workspace())
             })
             .collect();
         let mut group = c.benchmark_group(format!("segment_{FRAMES}_{}_frames", scenario.name()));
         for crease in ["split-only", "on"] {
-            let planner = planner(crease);
+            let planner = planner_with_crease(crease, &contract).expect("planner");
             let detections: usize = frames
                 .iter()
                 .map(|(frame, bytes, workspace)| {

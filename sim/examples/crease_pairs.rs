@@ -15,10 +15,8 @@
 
 use std::collections::{BTreeMap, HashMap};
 
-use mvgrasp_core::rng::SplitMix64;
-use mvgrasp_core::{ClusterConfig, GraspNet, MomentsNet, Planner, PlannerConfig, Reattach};
-use mvgrasp_sim::camera::{NoiseModel, render};
-use mvgrasp_sim::eval::{crease_setting, episode_scene};
+use mvgrasp_core::{GraspNet, MomentsNet, Reattach};
+use mvgrasp_sim::eval::{episode_first_frame, planner_with_crease};
 use mvgrasp_sim::objects::{Catalog, Family};
 use mvgrasp_sim::scene::Scenario;
 
@@ -59,17 +57,10 @@ fn main() -> anyhow::Result<()> {
     let first_seed: u64 = args.next().map(|a| a.parse()).transpose()?.unwrap_or(800_000);
     let list = args.next().is_some();
     let contract = MomentsNet::default().contract().clone();
-    let planner = |crease| {
-        let config = PlannerConfig {
-            cluster: ClusterConfig {
-                crease,
-                ..ClusterConfig::default()
-            },
-            ..PlannerConfig::default()
-        };
-        Planner::new(config, contract.clone())
-    };
-    let (whole, split) = (planner(None)?, planner(crease_setting("split-only")?)?);
+    let (whole, split) = (
+        planner_with_crease("off", &contract)?,
+        planner_with_crease("split-only", &contract)?,
+    );
     let families: Vec<Family> = Family::ALL.into_iter().filter(|f| *f != Family::Bowl).collect();
     let catalog = Catalog::of(&families);
     let reattach = Reattach::default();
@@ -87,9 +78,7 @@ fn main() -> anyhow::Result<()> {
     ] {
         let mut counts = [0usize; 4];
         for seed in first_seed..first_seed + episodes {
-            let (scene, camera) = episode_scene(scenario, seed, &catalog)?;
-            let mut rng = SplitMix64::new(seed ^ 0x0153_EAB0);
-            let frame = render(&scene, &camera, Some((&NoiseModel::default(), &mut rng)));
+            let (scene, frame) = episode_first_frame(scenario, seed, &catalog)?;
             let bytes = frame.depth_le_bytes();
             let input = frame.scene_input(&bytes, scene.workspace());
             let (clusters, parts) = (whole.segment(&input)?, split.segment(&input)?);

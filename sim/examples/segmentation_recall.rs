@@ -22,10 +22,9 @@
 
 use std::path::PathBuf;
 
-use mvgrasp_core::rng::SplitMix64;
-use mvgrasp_core::{ClusterConfig, GraspNet, MomentsNet, Planner, PlannerConfig, Segmentation};
-use mvgrasp_sim::camera::{Frame, NoiseModel, render};
-use mvgrasp_sim::eval::{crease_setting, episode_scene};
+use mvgrasp_core::{GraspNet, MomentsNet, Segmentation};
+use mvgrasp_sim::camera::Frame;
+use mvgrasp_sim::eval::{episode_first_frame, planner_with_crease};
 use mvgrasp_sim::files::write_detections;
 use mvgrasp_sim::objects::{Catalog, Family};
 use mvgrasp_sim::overlap::Overlap;
@@ -75,18 +74,11 @@ fn main() -> anyhow::Result<()> {
         std::fs::create_dir_all(dir)?;
     }
     let contract = MomentsNet::default().contract().clone();
-    let planner = |crease| {
-        let config = PlannerConfig {
-            cluster: ClusterConfig {
-                crease,
-                ..ClusterConfig::default()
-            },
-            ..PlannerConfig::default()
-        };
-        Planner::new(config, contract.clone())
-    };
-    let crease = crease_setting(&args.next().unwrap_or_else(|| "on".into()))?;
-    let planners = [planner(None)?, planner(crease)?];
+    let crease = args.next().unwrap_or_else(|| "on".into());
+    let planners = [
+        planner_with_crease("off", &contract)?,
+        planner_with_crease(&crease, &contract)?,
+    ];
     let first_seed: u64 = args.next().map(|a| a.parse()).transpose()?.unwrap_or(800_000);
     // The seen families of results/seen-families (every family but the bowl).
     let families: Vec<Family> = Family::ALL.into_iter().filter(|f| *f != Family::Bowl).collect();
@@ -103,10 +95,7 @@ fn main() -> anyhow::Result<()> {
     ] {
         let mut scores = [Score::default(), Score::default()];
         for seed in first_seed..first_seed + episodes {
-            let (scene, camera) = episode_scene(scenario, seed, &catalog)?;
-            // The first frame of the episode, with `sim eval`'s noise draw.
-            let mut rng = SplitMix64::new(seed ^ 0x0153_EAB0);
-            let frame = render(&scene, &camera, Some((&NoiseModel::default(), &mut rng)));
+            let (scene, frame) = episode_first_frame(scenario, seed, &catalog)?;
             let bytes = frame.depth_le_bytes();
             let input = frame.scene_input(&bytes, scene.workspace());
             let segs = [planners[0].segment(&input)?, planners[1].segment(&input)?];

@@ -47,7 +47,8 @@ use mvgrasp_client::request::{depth_request, pose_from_message};
 use mvgrasp_client::{PlannerClient, pb};
 use mvgrasp_core::rng::SplitMix64;
 use mvgrasp_core::{
-    CreaseConfig, FieldOfView, GraspNet, PlanOptions, Planner, Reattach, ViewPolicy, Workspace,
+    ClusterConfig, CreaseConfig, FieldOfView, GraspNet, ModelContract, PlanOptions, Planner, PlannerConfig,
+    Reattach, ViewPolicy, Workspace,
 };
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use parry3d::math::Pose;
@@ -429,6 +430,40 @@ pub fn episode_scene(scenario: Scenario, seed: u64, catalog: &Catalog) -> Result
     Ok((scene, camera))
 }
 
+/// The generator of an episode's sensor noise: [`run_episode`] draws each
+/// frame's noise from it in turn.
+pub fn episode_noise_rng(seed: u64) -> SplitMix64 {
+    SplitMix64::new(seed ^ 0x0153_EAB0)
+}
+
+/// An episode's scene and the first frame [`run_episode`] sees of it
+/// (with the default noise model, as `sim eval` renders).
+pub fn episode_first_frame(scenario: Scenario, seed: u64, catalog: &Catalog) -> Result<(Scene, Frame)> {
+    let (scene, camera) = episode_scene(scenario, seed, catalog)?;
+    let frame = render(
+        &scene,
+        &camera,
+        Some((&NoiseModel::default(), &mut episode_noise_rng(seed))),
+    );
+    Ok((scene, frame))
+}
+
+/// A default planner with the crease split of `crease` ([`crease_setting`]'s
+/// text form), for comparing segmentations.
+pub fn planner_with_crease(crease: &str, contract: &ModelContract) -> Result<Planner> {
+    let config = PlannerConfig {
+        cluster: ClusterConfig {
+            crease: crease_setting(crease)?,
+            ..ClusterConfig::default()
+        },
+        ..PlannerConfig::default()
+    };
+    Planner::new(config, contract.clone()).map_err(|e| Error::Invalid {
+        field: "contract",
+        reason: e.to_string(),
+    })
+}
+
 /// Cameras drawn for an episode, at most, looking for one whose field of
 /// view holds every object ([`episode_scene`]).
 pub const CAMERA_DRAWS: usize = 32;
@@ -632,7 +667,7 @@ pub fn run_episode(
 ) -> Result<Episode> {
     let (mut scene, camera) = episode_scene(scenario, seed, &config.catalog)?;
     let options = plan_options(setting, seed, &config.gripper);
-    let mut noise_rng = SplitMix64::new(seed ^ 0x0153_EAB0);
+    let mut noise_rng = episode_noise_rng(seed);
     let mut episode = Episode {
         scenario,
         seed,

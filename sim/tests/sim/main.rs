@@ -5,7 +5,7 @@
 
 use mvgrasp_core::rng::SplitMix64;
 use mvgrasp_core::{GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig};
-use mvgrasp_sim::camera::{Camera, NoiseModel, render};
+use mvgrasp_sim::camera::{Camera, Frame, NoiseModel, render};
 use mvgrasp_sim::objects::{Catalog, Family, ObjectModel};
 use mvgrasp_sim::scene::{PlacedObject, Scenario, Scene};
 use nalgebra::Vector3;
@@ -148,20 +148,26 @@ fn cameras_stay_in_the_recommended_range() {
     }
 }
 
+/// A scene of `families` from `seed` and a noisy frame of it from a
+/// random camera (both drawn from `seed + 100`).
+fn noisy_frame(scenario: Scenario, seed: u64, families: &[Family]) -> (Scene, Frame) {
+    let scene = Scene::generate(scenario, seed, families).unwrap();
+    let mut rng = SplitMix64::new(seed + 100);
+    let camera = Camera::random(&mut rng, Vector3::new(0.0, 0.0, f64::from(scene.table_z)), false);
+    let frame = render(&scene, &camera, Some((&NoiseModel::default(), &mut rng)));
+    (scene, frame)
+}
+
 /// The planner's pipeline finds the objects of simulated, noisy frames.
 #[test]
 fn the_pipeline_finds_simulated_objects() {
     let mut net = MomentsNet::default();
     let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).unwrap();
-    let model = NoiseModel::default();
     let (mut visible, mut found) = (0, 0);
     for (scenario, seeds) in [(Scenario::Isolated, 0..8u64), (Scenario::Clutter, 0..3)] {
         for seed in seeds {
-            let scene = Scene::generate(scenario, seed, &Family::ALL).unwrap();
+            let (scene, frame) = noisy_frame(scenario, seed, &Family::ALL);
             let z = f64::from(scene.table_z);
-            let mut rng = SplitMix64::new(seed + 100);
-            let camera = Camera::random(&mut rng, Vector3::new(0.0, 0.0, z), false);
-            let frame = render(&scene, &camera, Some((&model, &mut rng)));
             let bytes = frame.depth_le_bytes();
             let input = frame.scene_input(&bytes, scene.workspace());
             let plan = planner.plan(&input, &PlanOptions::default(), &mut net).unwrap();
@@ -197,26 +203,12 @@ fn the_pipeline_finds_simulated_objects() {
 #[test]
 fn a_mug_s_handle_or_a_bottle_s_neck_cut_off_by_the_crease_split_joins_it_again() {
     let contract = MomentsNet::default().contract().clone();
-    let planner = |crease: &str| {
-        let config = PlannerConfig {
-            cluster: mvgrasp_core::ClusterConfig {
-                crease: mvgrasp_sim::eval::crease_setting(crease).unwrap(),
-                ..mvgrasp_core::ClusterConfig::default()
-            },
-            ..PlannerConfig::default()
-        };
-        Planner::new(config, contract.clone()).unwrap()
-    };
+    let planner = |crease| mvgrasp_sim::eval::planner_with_crease(crease, &contract).unwrap();
     let (split_only, default) = (planner("split-only"), planner("on"));
-    let model = NoiseModel::default();
     let (mut whole_split_only, mut whole_default, mut scenes) = (0, 0, 0);
     for family in [Family::Mug, Family::Bottle] {
         for seed in 0..12u64 {
-            let scene = Scene::generate(Scenario::Isolated, seed, &[family]).unwrap();
-            let z = f64::from(scene.table_z);
-            let mut rng = SplitMix64::new(seed + 100);
-            let camera = Camera::random(&mut rng, Vector3::new(0.0, 0.0, z), false);
-            let frame = render(&scene, &camera, Some((&model, &mut rng)));
+            let (scene, frame) = noisy_frame(Scenario::Isolated, seed, &[family]);
             let bytes = frame.depth_le_bytes();
             let input = frame.scene_input(&bytes, scene.workspace());
             let (a, b) = (
