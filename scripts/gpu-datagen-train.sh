@@ -23,7 +23,8 @@
 # MODEL_CARD.md has the measurement), plus $RANK_WEIGHT times the rank loss
 # (default 0: off; 0.01 lifted view accuracy 3 points on this CPU but
 # cleared fewer objects in physics, MODEL_CARD.md). ARCH: paper, narrow,
-# skip. Runs land in $DATA/runs/ARCH.
+# skip. Runs land in $DATA/runs/ARCH. DEVICE (default cuda) = cpu runs the
+# same steps on a CPU, small, to check the script before spending device time.
 set -euo pipefail
 
 SIM=${SIM:-target/release/sim}
@@ -34,6 +35,7 @@ SEED0=${SEED0:-200000}
 DATA_VERSION=${DATA_VERSION:-sim-6}
 POSITIVE_WEIGHT=${POSITIVE_WEIGHT:-10}
 RANK_WEIGHT=${RANK_WEIGHT:-0}
+DEVICE=${DEVICE:-cuda}
 mkdir -p "$DATA" "$OUT"
 
 chunks() { find "$DATA" -maxdepth 2 -name manifest.json -printf '%h\n' | sort | paste -sd, -; }
@@ -73,7 +75,7 @@ train)
     pids=()
     for arch in "${archs[@]}"; do
         (cd training && PYTHONUNBUFFERED=1 python3 -m mvgrasp_train.train --data "$data" --out "$DATA/runs/$arch" \
-            --architecture "$arch" --device cuda --batch 64 --lr 1e-3 --schedule cosine \
+            --architecture "$arch" --device "$DEVICE" --batch 64 --lr 1e-3 --schedule cosine \
             --epochs 1000 --minutes "$minutes" --eval-every 4 --hold-out-families bowl \
             --positive-weight "$POSITIVE_WEIGHT" --rank-weight "$RANK_WEIGHT" \
             >"$OUT/train-$arch.log" 2>&1) &
