@@ -37,17 +37,21 @@ struct Pair {
 }
 
 impl Pair {
-    /// Whether `r` would join the smaller part to the larger one (the same
-    /// measures as `core::segment::crease::reattach`, on this pair alone).
+    /// Whether `r` would join the smaller part to the larger one (judged on
+    /// this pair alone; step 6 itself goes smallest part first).
     fn joins(&self, r: &Reattach) -> bool {
         let (small, large) = (
             self.points[0].min(self.points[1]),
             self.points[0].max(self.points[1]),
         );
-        self.small_area_m2 < r.max_area_m2
-            && (small as f32) < r.max_share * large as f32
-            && self.border as f32 > r.min_outline_share * self.small_outline as f32
-            && self.step_m < r.max_step_m
+        r.hangs_on(
+            small,
+            large,
+            self.small_area_m2,
+            self.border,
+            self.small_outline,
+            self.step_m * self.border as f32,
+        )
     }
 }
 

@@ -59,18 +59,16 @@ def main(argv=None):
     if args.all_views:
         held = list(range(len(ds.meta)))
     scenarios = {s for s in args.scenarios.split(",") if s}
-    if scenarios:
-        held = [i for i in held if ds.meta[i].get("scenario") in scenarios]
     only = {f for f in args.families.split(",") if f}
-    if only:
-        held = [i for i in held if ds.meta[i]["family"] in only]
+
+    def wanted(i):
+        m = ds.meta[i]
+        return (not scenarios or m.get("scenario") in scenarios) and (not only or m["family"] in only)
+
+    held = [i for i in held if wanted(i)]
     unseen = {f for f in args.hold_out_families.split(",") if f}
     # Every view of an unseen family counts, not only its held-out share: no model trained on them.
-    families = [i for i, m in enumerate(ds.meta) if m["family"] in unseen]
-    if scenarios:
-        families = [i for i in families if ds.meta[i].get("scenario") in scenarios]
-    if only:
-        families = [i for i in families if ds.meta[i]["family"] in only]
+    families = [i for i, m in enumerate(ds.meta) if m["family"] in unseen and wanted(i)]
     seen = [i for i in held if ds.meta[i]["family"] not in unseen]
     results = {}
     for n, path in enumerate(args.models):

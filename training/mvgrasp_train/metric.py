@@ -115,6 +115,22 @@ def grasp_correct(pred, truth, pixel_m, pad_m):
     return False
 
 
+def hits(pred_maps, ds, indices):
+    """Per view `indices[k]`: whether the best predicted grasp of
+    `pred_maps[k]` matches one of its positives (None: it has none); and
+    the best predicted qualities."""
+    c = ds.contract
+    pixel_m, width_scale = c["pixel_size_m"], c["width_scale_m"]
+    pad_m = ds.manifest["gripper"]["pad_width_m"]
+    u, v, phi, width, quality = decode(pred_maps)
+    out = []
+    for k, i in enumerate(indices):
+        truth = ds.grasps_of(i)
+        out.append(grasp_correct((u[k], v[k], phi[k], width[k] * width_scale), truth, pixel_m, pad_m)
+                   if len(truth) else None)
+    return out, quality
+
+
 def evaluate(pred_maps, ds, indices, threshold=0.5):
     """Accuracy of `pred_maps` [len(indices), 4, L, L] on views `indices` of `ds`.
 
@@ -122,25 +138,20 @@ def evaluate(pred_maps, ds, indices, threshold=0.5):
     share of views without positives whose best predicted quality clears
     `threshold` (false alarms).
     """
-    c = ds.contract
-    pixel_m, width_scale = c["pixel_size_m"], c["width_scale_m"]
-    pad_m = ds.manifest["gripper"]["pad_width_m"]
-    u, v, phi, width, quality = decode(pred_maps)
+    ok, quality = hits(pred_maps, ds, indices)
     per_axis, empty, alarms = {}, 0, 0
     for k, i in enumerate(indices):
-        truth = ds.grasps_of(i)
-        if len(truth) == 0:
+        if ok[k] is None:
             empty += 1
             alarms += int(quality[k] >= threshold)
             continue
-        ok = grasp_correct((u[k], v[k], phi[k], width[k] * width_scale), truth, pixel_m, pad_m)
         axis = ds.meta[i]["view"]
-        hits, total = per_axis.get(axis, (0, 0))
-        per_axis[axis] = (hits + int(ok), total + 1)
-    hits = sum(h for h, _ in per_axis.values())
+        h, t = per_axis.get(axis, (0, 0))
+        per_axis[axis] = (h + int(ok[k]), t + 1)
+    total_hits = sum(h for h, _ in per_axis.values())
     total = sum(t for _, t in per_axis.values())
     return {
-        "accuracy": hits / total if total else float("nan"),
+        "accuracy": total_hits / total if total else float("nan"),
         "views_with_positives": total,
         "per_view": {a: {"accuracy": h / t, "views": t} for a, (h, t) in sorted(per_axis.items())},
         "views_without_positives": empty,
@@ -166,10 +177,5 @@ def evaluate_by(pred_maps, ds, indices, key):
 def misses(pred_maps, ds, indices):
     """Positions k (into `indices`) of the views with positives whose best
     predicted grasp matches none of them."""
-    c = ds.contract
-    pixel_m, width_scale = c["pixel_size_m"], c["width_scale_m"]
-    pad_m = ds.manifest["gripper"]["pad_width_m"]
-    u, v, phi, width, _ = decode(pred_maps)
-    return [k for k, i in enumerate(indices)
-            if len(ds.grasps_of(i))
-            and not grasp_correct((u[k], v[k], phi[k], width[k] * width_scale), ds.grasps_of(i), pixel_m, pad_m)]
+    ok, _ = hits(pred_maps, ds, indices)
+    return [k for k, h in enumerate(ok) if h is False]

@@ -77,6 +77,27 @@ pub struct Reattach {
     pub max_step_m: f32,
 }
 
+impl Reattach {
+    /// Whether a part of `points` points hangs on a neighbour of
+    /// `neighbour_points`: its surface seen from the camera (`area_m2`), the
+    /// pixel pairs across their border (`border`), its outline pixels and
+    /// the depth change summed over the border pairs (`step_sum_m`).
+    pub fn hangs_on(
+        &self,
+        points: usize,
+        neighbour_points: usize,
+        area_m2: f32,
+        border: usize,
+        outline: usize,
+        step_sum_m: f32,
+    ) -> bool {
+        area_m2 < self.max_area_m2
+            && (points as f32) < self.max_share * neighbour_points as f32
+            && border as f32 > self.min_outline_share * outline as f32
+            && step_sum_m < self.max_step_m * border as f32
+    }
+}
+
 impl Default for Reattach {
     fn default() -> Self {
         Self {
@@ -498,7 +519,7 @@ fn reattach(
     for r in order {
         let r = r as usize;
         // A part that took another in has changed; it stays.
-        if !sets.is_root(r) || sets.size(r) != size[r] || area[r] >= attach.max_area_m2 {
+        if !sets.is_root(r) || sets.size(r) != size[r] {
             continue;
         }
         let start = pairs.partition_point(|&((a, _), _)| (a as usize) < r);
@@ -510,9 +531,14 @@ fn reattach(
             continue;
         };
         let target = sets.find(o as usize);
-        let hangs = (size[r] as f32) < attach.max_share * sets.size(target) as f32
-            && n as f32 > attach.min_outline_share * outline[r] as f32
-            && step / (n as f32) < attach.max_step_m;
+        let hangs = attach.hangs_on(
+            size[r] as usize,
+            sets.size(target) as usize,
+            area[r],
+            n as usize,
+            outline[r] as usize,
+            step,
+        );
         if hangs && target != r {
             sets.union_roots(target, r);
             left -= 1;
