@@ -2,7 +2,7 @@
 
     python3 -m mvgrasp_train.evaluate_onnx --data DATASET MODEL.onnx [MODEL.onnx ...] \
         [--hold-out-families bowl] [--scenarios isolated,packed] [--families mug] [--all-views] \
-        [--misses MISSES.png [--misses-count 6]]
+        [--misses MISSES.png [--misses-count 6]] [--smoothing-sigma-px 1.0]
 
 Runs each model through onnxruntime (CPU) on the held-out instances of
 DATASET (the 80/20 split by instance of dataset.py) and prints the paper's
@@ -10,7 +10,10 @@ accuracy (metric.py) overall, per view direction, per scenario and per
 family, for the seen families and, apart, for the families named by
 --hold-out-families. `--misses` draws the first model's first missed views
 (view, target quality, predicted quality; the chosen grasp and the
-positives marked).
+positives marked). `--smoothing-sigma-px` blurs the predicted quality
+before the argmax as the planner does before its peak search (its default
+is 1.0 px; `metric.smooth_quality`); the default, 0, is the paper's metric
+on the network's raw output.
 Use it to compare models trained on different data on the same views: a
 model never saw the instances of another dataset made with other seeds, so
 on a dataset generated with seeds no model trained on, `--all-views` counts
@@ -27,11 +30,11 @@ import onnxruntime
 from . import dataset, metric
 
 
-def predict(path, views, batch=256):
+def predict(path, views, batch=256, sigma_px=0.0):
     session = onnxruntime.InferenceSession(path, providers=["CPUExecutionProvider"])
     out = [session.run(["maps"], {"views": np.ascontiguousarray(views[i:i + batch])})[0]
            for i in range(0, len(views), batch)]
-    return np.concatenate(out)
+    return metric.smooth_quality(np.concatenate(out), sigma_px)
 
 
 def report(pred, ds, indices):
@@ -53,6 +56,8 @@ def main(argv=None):
     p.add_argument("--misses", help="draw the first model's first missed views of seen families here (PNG; "
                                     "needs matplotlib)")
     p.add_argument("--misses-count", type=int, default=6)
+    p.add_argument("--smoothing-sigma-px", type=float, default=0.0,
+                   help="blur the predicted quality before the argmax, as the planner does (its default: 1.0)")
     args = p.parse_args(argv)
     ds = dataset.load(args.data, mmap=True)
     _, held = dataset.split_by_instance(ds.meta)
@@ -72,7 +77,7 @@ def main(argv=None):
     seen = [i for i in held if ds.meta[i]["family"] not in unseen]
     results = {}
     for n, path in enumerate(args.models):
-        pred = predict(path, ds.views[seen])
+        pred = predict(path, ds.views[seen], sigma_px=args.smoothing_sigma_px)
         results[path] = {"seen_families": report(pred, ds, seen)}
         if args.misses and n == 0:
             from . import plot
@@ -80,7 +85,8 @@ def main(argv=None):
             plot.draw_views(args.misses, ds, [seen[k] for k in picked], pred[picked],
                             f"{path}: first {len(picked)} missed views")
         if families:
-            results[path]["unseen_families"] = report(predict(path, ds.views[families]), ds, families)
+            results[path]["unseen_families"] = report(
+                predict(path, ds.views[families], sigma_px=args.smoothing_sigma_px), ds, families)
     print(json.dumps(results, indent=1))
     print(f"{'model':<40} {'seen':>7} {'top':>6} {'front':>6} {'side':>6} {'unseen':>7}", file=sys.stderr)
     for path, r in results.items():

@@ -31,6 +31,30 @@ def decode(maps):
     return u, v, phi, at[:, 3], at[:, 0]
 
 
+def smooth_quality(maps, sigma_px):
+    """`maps` with the quality channel blurred as the planner blurs it before
+    its peak search (`core::decode::smooth`: a separable Gaussian of radius
+    ceil(3 sigma), edges clamped, qualities under 1e-6 set to 0 first); the
+    other channels are left as they are, read at the peak. `sigma_px <= 0`
+    returns `maps` unchanged: the paper's metric reads the network's raw
+    argmax."""
+    if sigma_px <= 0:
+        return maps
+    r = int(np.ceil(3.0 * sigma_px))
+    kernel = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma_px) ** 2)
+    kernel /= kernel.sum()
+    q = np.where(maps[:, 0] > 1e-6, maps[:, 0], 0.0).astype(np.float32)
+    for axis in (2, 1):  # rows, then columns
+        pad = [(0, 0)] * 3
+        pad[axis] = (r, r)
+        padded = np.pad(q, pad, mode="edge")
+        n = q.shape[axis]
+        q = sum(w * np.take(padded, np.arange(k, k + n), axis=axis) for k, w in enumerate(kernel))
+    out = maps.copy()
+    out[:, 0] = q
+    return out
+
+
 def angle_diff(a, b):
     """Difference of grasp angles modulo pi, in [0, pi/2]."""
     d = np.mod(np.asarray(a) - np.asarray(b), np.pi)

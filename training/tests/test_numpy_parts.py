@@ -105,6 +105,21 @@ class Metric(unittest.TestCase):
         self.assertAlmostEqual(abs(float(phi[1])), np.pi / 2, places=6)
         np.testing.assert_allclose(q, [0.9, 0.4])
 
+    def test_the_planner_s_smoothing_prefers_a_broad_peak_to_a_lone_spike(self):
+        maps = np.zeros((1, 4, 16, 16), np.float32)
+        maps[0, 0, 3, 3] = 0.9  # one pixel
+        maps[0, 0, 8:13, 8:13] = 0.7  # a 5 x 5 plateau centred at (u, v) = (10, 10)
+        maps[0, 1] = 1.0
+        self.assertEqual((int(metric.decode(maps)[0][0]), int(metric.decode(maps)[1][0])), (3, 3))
+        smoothed = metric.smooth_quality(maps, 1.0)
+        u, v, _, _, q = metric.decode(smoothed)
+        self.assertEqual((int(u[0]), int(v[0])), (10, 10))
+        self.assertLess(float(q[0]), 0.7)
+        np.testing.assert_array_equal(smoothed[:, 1:], maps[:, 1:])
+        # Both lie 3 sigma inside the map: no mass is lost. Sigma 0 is the raw map.
+        self.assertAlmostEqual(float(smoothed[0, 0].sum()), 0.9 + 0.7 * 25, places=4)
+        self.assertIs(metric.smooth_quality(maps, 0.0), maps)
+
 
 def write_dataset(root, l=8):
     """A two-shard dataset in `sim datagen`'s format, written by hand."""
