@@ -16,6 +16,10 @@
 # (sim-5: 0.15 N m)), each chunk with its own seed range, until the next
 # chunk would pass SECONDS. Each chunk's scenes, views and wall time go to
 # $OUT/datagen.tsv: that is the throughput figure of issue 3.
+# $SCENARIOS (default isolated,packed,pile,clutter) and $DATAGEN_ARGS (more
+# `sim datagen` options, e.g. "--stride-px 1 --angles 16": labels at every
+# pixel and 16 angles, about 10x the labelling time; MODEL_CARD.md, "Dense
+# labels") change what each chunk holds.
 # `train MINUTES ARCH...`: one training run per architecture (default:
 # paper), all at once on the one GPU, cosine schedule over MINUTES, on every
 # chunk in $DATA, holding out the bowl family, the error at positive pixels
@@ -36,6 +40,8 @@ DATA_VERSION=${DATA_VERSION:-sim-6}
 POSITIVE_WEIGHT=${POSITIVE_WEIGHT:-10}
 RANK_WEIGHT=${RANK_WEIGHT:-0}
 DEVICE=${DEVICE:-cuda}
+SCENARIOS=${SCENARIOS:-isolated,packed,pile,clutter}
+DATAGEN_ARGS=${DATAGEN_ARGS:-}
 mkdir -p "$DATA" "$OUT"
 
 chunks() { find "$DATA" -maxdepth 2 -name manifest.json -printf '%h\n' | sort | paste -sd, -; }
@@ -53,8 +59,8 @@ datagen)
         dir=$(printf '%s/chunk-%03d' "$DATA" "$i")
         t0=$(date +%s.%N)
         "$SIM" datagen --scenes "$SCENES_PER_CHUNK" --seed $((SEED0 + i * SCENES_PER_CHUNK)) \
-            --scenarios isolated,packed,pile,clutter --input-size-px 72 --pixel-size-mm 3.3333333 \
-            --data-version "$DATA_VERSION" --out "$dir" 2>"$dir.log" >/dev/null || { tail -5 "$dir.log"; exit 1; }
+            --scenarios "$SCENARIOS" --input-size-px 72 --pixel-size-mm 3.3333333 \
+            --data-version "$DATA_VERSION" $DATAGEN_ARGS --out "$dir" 2>"$dir.log" >/dev/null || { tail -5 "$dir.log"; exit 1; }
         t1=$(date +%s.%N)
         python3 - "$dir" "$i" "$SCENES_PER_CHUNK" "$t0" "$t1" "$(nproc)" >>"$OUT/datagen.tsv" <<'EOF'
 import json, sys
