@@ -38,10 +38,7 @@ def predict(path, views, batch=256, sigma_px=0.0):
 
 
 def report(pred, ds, indices):
-    result = metric.evaluate(pred, ds, indices)
-    result["per_scenario"] = metric.evaluate_by(pred, ds, indices, "scenario")
-    result["per_family"] = metric.evaluate_by(pred, ds, indices, "family")
-    return result
+    return metric.evaluate(pred, ds, indices, by=("scenario", "family"))
 
 
 def main(argv=None):

@@ -155,12 +155,13 @@ def hits(pred_maps, ds, indices):
     return out, quality
 
 
-def evaluate(pred_maps, ds, indices, threshold=0.5):
+def evaluate(pred_maps, ds, indices, threshold=0.5, by=()):
     """Accuracy of `pred_maps` [len(indices), 4, L, L] on views `indices` of `ds`.
 
     Returns a dict: accuracy over views with positives, per view axis, and the
     share of views without positives whose best predicted quality clears
-    `threshold` (false alarms).
+    `threshold` (false alarms); for each meta key in `by` (scenario, family,
+    ...), `per_KEY` = `accuracy_by` of the same judgements.
     """
     ok, quality = hits(pred_maps, ds, indices)
     per_axis, empty, alarms = {}, 0, 0
@@ -181,20 +182,18 @@ def evaluate(pred_maps, ds, indices, threshold=0.5):
         "views_without_positives": empty,
         "false_alarm_rate": alarms / empty if empty else float("nan"),
         "false_alarm_threshold": threshold,
+        **{f"per_{key}": accuracy_by(ok, [ds.meta[i].get(key, "?") for i in indices]) for key in by},
     }
 
 
-def evaluate_by(pred_maps, ds, indices, key):
-    """`evaluate` per value of `ds.meta[i][key]` (scenario, family, ...):
-    {value: {"accuracy", "views"}}, counting views with positives."""
-    groups = {}
-    for k, i in enumerate(indices):
-        groups.setdefault(ds.meta[i].get(key, "?"), []).append(k)
+def accuracy_by(ok, names):
+    """{name: {"accuracy", "views"}} of the judgements `ok` (True / False;
+    None, a view without positives, counts nowhere) grouped by the parallel
+    list `names`; a name with no judged view gets nan and 0."""
     out = {}
-    for name in sorted(groups):
-        picked = groups[name]
-        part = evaluate(pred_maps[picked], ds, [indices[k] for k in picked])
-        out[name] = {"accuracy": part["accuracy"], "views": part["views_with_positives"]}
+    for name in sorted(set(names)):
+        judged = [h for h, n in zip(ok, names) if n == name and h is not None]
+        out[name] = {"accuracy": sum(judged) / len(judged) if judged else float("nan"), "views": len(judged)}
     return out
 
 

@@ -140,18 +140,11 @@ def compare(a, b, pairs, min_iou=0.5):
         "oracle_accuracy": float(np.mean(oracle)) if oracle else float("nan"),
         "any_positive_accuracy": float(np.mean(any_positive)) if any_positive else float("nan"),
         "b_empty_where_a_has_positives": counts["only_a"] / with_a if with_a else float("nan"),
-        "oracle_per_scenario": per_group(oracle, [g[0] for g in groups]),
-        "oracle_per_view": per_group(oracle, [g[1] for g in groups]),
+        "oracle_per_scenario": metric.accuracy_by(oracle, [g[0] for g in groups]),
+        "oracle_per_view": metric.accuracy_by(oracle, [g[1] for g in groups]),
         "min_iou": min_iou,
         "kept": kept,
     }
-
-
-def per_group(hits, names):
-    """{name: {accuracy, views}} of `hits` grouped by the parallel list `names`."""
-    return {name: {"accuracy": float(np.mean([h for h, n in zip(hits, names) if n == name])),
-                   "views": names.count(name)}
-            for name in sorted(set(names))}
 
 
 def model_accuracy(model, a, b, kept):

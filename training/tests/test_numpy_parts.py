@@ -184,11 +184,11 @@ class Reader(unittest.TestCase):
             pred[2, :, 4, 3] = [0.9, -1.0, 0.0, 0.25]
             self.assertEqual(metric.misses(pred, ds, [0, 1, 2]), [2])
             self.assertEqual(metric.misses(pred[[2, 0]], ds, [2, 0]), [0], "positions into the given indices")
-            self.assertEqual(metric.evaluate_by(pred, ds, [0, 1, 2], "family"),
+            result = metric.evaluate(pred, ds, [0, 1, 2], by=("family", "scenario"))
+            self.assertEqual(result["per_family"],
                              {"box": {"accuracy": 1.0, "views": 1}, "mug": {"accuracy": 0.0, "views": 1}})
             # Views without positives count in no group's accuracy, and a missing key is "?".
-            by_scenario = metric.evaluate_by(pred, ds, [0, 1, 2], "scenario")
-            self.assertEqual(by_scenario, {"?": {"accuracy": 0.5, "views": 2}})
+            self.assertEqual(result["per_scenario"], {"?": {"accuracy": 0.5, "views": 2}})
 
     def test_rejects_another_format_version(self):
         with tempfile.TemporaryDirectory() as root:
