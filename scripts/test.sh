@@ -57,5 +57,7 @@ target/debug/sim datagen --scenes 6 --scenes-per-shard 3 --scenarios isolated,pa
 PYTHONPATH="$pydeps" python3 sim/python/read_dataset.py target/datagen-ci --check
 echo "== training: dataset reader, augmentation, metric (numpy); torch tests skip, saying why, without torch"
 PYTHONPATH="$pydeps" python3 -m unittest discover -s training/tests -v
+echo "== scripts: compare_eval (standard library)"
+python3 -m unittest discover -s scripts/tests -v
 echo "== cargo nextest"
 cargo nextest run --workspace --no-fail-fast

@@ -1,0 +1,95 @@
+#!/usr/bin/env python3
+"""Side-by-side totals of `sim eval` runs on the same seeds: the A/B we run
+on the tuning seeds before a model or planner change lands.
+
+    python3 scripts/compare_eval.py RUN_A RUN_B ...     # folders or eval.json files
+
+For each run, summed over the settings it ran: objects removed, attempts,
+success per attempt and the failure causes, per scenario and in all; then
+how often the tried grasps held, by their analytic label (the table
+`eval.md` prints per family). The first run is the reference; the others
+show their difference to it. Standard library only.
+"""
+
+import json
+import os
+import sys
+from collections import Counter
+
+COUNTS = ("removed", "objects", "attempts")
+
+
+def load(path):
+    if os.path.isdir(path):
+        path = os.path.join(path, "eval.json")
+    with open(path) as f:
+        return json.load(f)
+
+
+def totals(run):
+    """{scenario: Counter} of removed / objects / attempts and each failure
+    cause, summed over settings; "all" sums the scenarios."""
+    out = {}
+    for s in run["summaries"]:
+        c = out.setdefault(s["scenario"], Counter())
+        for key in COUNTS:
+            c[key] += s[key]
+        for cause, n in s["failures"].items():
+            c[cause] += n
+    out["all"] = sum(out.values(), Counter())
+    return out
+
+
+def held_by_label(run):
+    """{label: (held, tried)} over every attempt that reached the physics
+    trial (approach collisions and missed objects never lifted)."""
+    tried, held = Counter(), Counter()
+    for episode in run.get("episodes", []):
+        for attempt in episode["attempts"]:
+            outcome, label = attempt[0], attempt[5]
+            if outcome.startswith("collision") or outcome == "object missed":
+                continue
+            tried[label] += 1
+            held[label] += outcome == "ok"
+    return {label: (held[label], tried[label]) for label in tried}
+
+
+def per_attempt(c):
+    return c["removed"] / c["attempts"] if c["attempts"] else float("nan")
+
+
+def report(paths):
+    runs = [load(p) for p in paths]
+    names = [os.path.basename(os.path.normpath(p)) for p in paths]
+    tables = [totals(r) for r in runs]
+    seeds = {r["command"][r["command"].index("--seed") + 1] if "--seed" in r["command"] else "?" for r in runs}
+    lines = [f"seeds: {', '.join(sorted(seeds))}" + ("  (runs on different seeds: not comparable)" if len(seeds) > 1 else "")]
+    scenarios = [s for s in tables[0] if s != "all"] + ["all"]
+    causes = sorted({k for t in tables for c in t.values() for k in c if k not in COUNTS})
+    for scenario in scenarios:
+        lines.append(f"\n{scenario}")
+        ref = tables[0].get(scenario, Counter())
+        for name, table in zip(names, tables):
+            c = table.get(scenario, Counter())
+            row = f"  {name:24s} removed {c['removed']:5d} of {c['objects']:5d}  attempts {c['attempts']:5d}  per attempt {per_attempt(c):.3f}"
+            if c is not ref:
+                row += f"  (removed {c['removed'] - ref['removed']:+d})"
+            row += "  " + ", ".join(f"{cause} {c[cause]}" for cause in causes)
+            lines.append(row)
+    lines.append("\ntried grasps held, by label (held / tried)")
+    for name, run in zip(names, runs):
+        cells = ", ".join(f"{label} {h}/{n} ({h / n:.3f})" for label, (h, n) in sorted(held_by_label(run).items()))
+        lines.append(f"  {name:24s} {cells}")
+    return "\n".join(lines)
+
+
+def main(argv):
+    if not argv or argv[0] in ("-h", "--help"):
+        print(__doc__)
+        return 0 if argv else 2
+    print(report(argv))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,77 @@
+"""scripts/compare_eval.py: totals over settings, differences, label table."""
+
+import json
+import os
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+import compare_eval  # noqa: E402
+
+FAILURES = ("collision on approach", "object missed", "slip during lift", "width too small")
+
+
+def summary(scenario, setting, removed, objects, attempts, slips=0, collisions=0):
+    failures = dict.fromkeys(FAILURES, 0)
+    failures["slip during lift"] = slips
+    failures["collision on approach"] = collisions
+    return {"scenario": scenario, "setting": setting, "removed": removed, "objects": objects,
+            "attempts": attempts, "failures": failures}
+
+
+def run(seed, summaries, attempts):
+    return {"command": ["sim", "eval", "--seed", str(seed)], "summaries": summaries,
+            "episodes": [{"scenario": "pile", "attempts": attempts}]}
+
+
+A = run(800000, [summary("pile", "all:0.1", 5, 8, 7, slips=1, collisions=1),
+                 summary("pile", "top-down:0.1", 6, 8, 6),
+                 summary("clutter", "all:0.1", 30, 32, 33, slips=3)],
+        [["ok", 0.7, 90.0, 90.0, 3.0, "positive", "box"],
+         ["slip during lift", 0.5, 120.0, 90.0, 3.0, "not antipodal", "mug"],
+         ["collision on approach: a neighbour (palm), at the grasp", 0.6, 100.0, 90.0, 3.0, "positive", "box"],
+         ["ok", 0.6, 80.0, 90.0, 3.0, "not antipodal", "box"]])
+B = run(800000, [summary("pile", "all:0.1", 4, 8, 8, slips=2, collisions=2),
+                 summary("clutter", "all:0.1", 31, 32, 32, slips=1)], [])
+
+
+class CompareEval(unittest.TestCase):
+    def test_totals_sum_settings_and_scenarios(self):
+        t = compare_eval.totals(A)
+        self.assertEqual((t["pile"]["removed"], t["pile"]["objects"], t["pile"]["attempts"]), (11, 16, 13))
+        self.assertEqual(t["pile"]["slip during lift"], 1)
+        self.assertEqual((t["all"]["removed"], t["all"]["attempts"], t["all"]["slip during lift"]), (41, 46, 4))
+
+    def test_held_by_label_skips_attempts_that_never_lifted(self):
+        self.assertEqual(compare_eval.held_by_label(A), {"positive": (1, 1), "not antipodal": (1, 2)})
+
+    def test_report_shows_differences_to_the_first_run(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            paths = []
+            for name, r in (("a", A), ("b", B)):
+                os.mkdir(os.path.join(tmp, name))
+                with open(os.path.join(tmp, name, "eval.json"), "w") as f:
+                    json.dump(r, f)
+                paths.append(os.path.join(tmp, name))
+            text = compare_eval.report(paths)
+        self.assertIn("seeds: 800000\n", text)
+        sections = dict(part.split("\n", 1) for part in text.split("\n\n")[1:])
+        pile_b = sections["pile"].splitlines()[1]
+        self.assertIn("removed     4 of     8", pile_b)
+        self.assertIn("(removed -7)", pile_b)  # pile: 4 against 11
+        self.assertIn("(removed -6)", sections["all"])  # all: 35 against 41
+        self.assertIn("not antipodal 1/2 (0.500)", text)
+
+    def test_different_seeds_are_flagged(self):
+        other = dict(B, command=["sim", "eval", "--seed", "700000"])
+        with tempfile.TemporaryDirectory() as tmp:
+            for name, r in (("a.json", A), ("b.json", other)):
+                with open(os.path.join(tmp, name), "w") as f:
+                    json.dump(r, f)
+            text = compare_eval.report([os.path.join(tmp, "a.json"), os.path.join(tmp, "b.json")])
+        self.assertIn("not comparable", text)
+
+
+if __name__ == "__main__":
+    unittest.main()
