@@ -7,7 +7,7 @@ on the tuning seeds before a model or planner change lands.
 For each run, summed over the settings it ran: objects removed, attempts,
 success per attempt and the failure causes, per scenario and in all; then
 how often the tried grasps held, by their analytic label (the table
-`eval.md` prints per family). The first run is the reference; the others
+`eval.md` prints per family), and the share the labeller calls positive. The first run is the reference; the others
 show their difference to it. Standard library only.
 """
 
@@ -78,8 +78,12 @@ def report(paths):
             lines.append(row)
     lines.append("\ntried grasps held, by label (held / tried)")
     for name, run in zip(names, runs):
-        cells = ", ".join(f"{label} {h}/{n} ({h / n:.3f})" for label, (h, n) in sorted(held_by_label(run).items()))
-        lines.append(f"  {name:24s} {cells}")
+        held = held_by_label(run)
+        cells = ", ".join(f"{label} {h}/{n} ({h / n:.3f})" for label, (h, n) in sorted(held.items()))
+        tried = sum(n for _, n in held.values())
+        positive = held.get("positive", (0, 0))[1]
+        share = f"; labelled positive {positive}/{tried} ({positive / tried:.3f})" if tried else ""
+        lines.append(f"  {name:24s} {cells}{share}")
     return "\n".join(lines)
 
 

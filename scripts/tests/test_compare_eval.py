@@ -62,6 +62,7 @@ class CompareEval(unittest.TestCase):
         self.assertIn("(removed -7)", pile_b)  # pile: 4 against 11
         self.assertIn("(removed -6)", sections["all"])  # all: 35 against 41
         self.assertIn("not antipodal 1/2 (0.500)", text)
+        self.assertIn("labelled positive 1/3 (0.333)", text)
 
     def test_different_seeds_are_flagged(self):
         other = dict(B, command=["sim", "eval", "--seed", "700000"])
