@@ -7,8 +7,9 @@ on the tuning seeds before a model or planner change lands.
 For each run, summed over the settings it ran: objects removed, attempts,
 success per attempt and the failure causes, per scenario and in all; then
 how often the tried grasps held, by their analytic label (the table
-`eval.md` prints per family), and the share the labeller calls positive. The first run is the reference; the others
-show their difference to it. Standard library only.
+`eval.md` prints per family), and the share the labeller calls positive.
+The first run is the reference; the others show their difference to it.
+Standard library only.
 """
 
 import json
@@ -42,12 +43,14 @@ def totals(run):
 
 def held_by_label(run):
     """{label: (held, tried)} over every attempt that reached the physics
-    trial (approach collisions and missed objects never lifted)."""
+    trial: those with a label (`eval.json` records none for a collision on
+    approach or a grasp that matched no object), as `eval.md`'s label table
+    (`eval::label_table`) counts them."""
     tried, held = Counter(), Counter()
     for episode in run.get("episodes", []):
         for attempt in episode["attempts"]:
             outcome, label = attempt[0], attempt[5]
-            if outcome.startswith("collision") or outcome == "object missed":
+            if label is None:
                 continue
             tried[label] += 1
             held[label] += outcome == "ok"

@@ -30,7 +30,10 @@ A = run(800000, [summary("pile", "all:0.1", 5, 8, 7, slips=1, collisions=1),
                  summary("clutter", "all:0.1", 30, 32, 33, slips=3)],
         [["ok", 0.7, 90.0, 90.0, 3.0, "positive", "box"],
          ["slip during lift", 0.5, 120.0, 90.0, 3.0, "not antipodal", "mug"],
-         ["collision on approach: a neighbour (palm), at the grasp", 0.6, 100.0, 90.0, 3.0, "positive", "box"],
+         ["collision on approach: a neighbour (palm), at the grasp", 0.6, 100.0, 90.0, 3.0, None, None],
+         ["object missed", 0.6, 100.0, 90.0, 3.0, None, None],
+         # the trial ran and the pads closed on nothing: lifted, labelled, failed
+         ["object missed", 0.6, 100.0, 90.0, 3.0, "positive", "box"],
          ["ok", 0.6, 80.0, 90.0, 3.0, "not antipodal", "box"]])
 B = run(800000, [summary("pile", "all:0.1", 4, 8, 8, slips=2, collisions=2),
                  summary("clutter", "all:0.1", 31, 32, 32, slips=1)], [])
@@ -43,8 +46,8 @@ class CompareEval(unittest.TestCase):
         self.assertEqual(t["pile"]["slip during lift"], 1)
         self.assertEqual((t["all"]["removed"], t["all"]["attempts"], t["all"]["slip during lift"]), (41, 46, 4))
 
-    def test_held_by_label_skips_attempts_that_never_lifted(self):
-        self.assertEqual(compare_eval.held_by_label(A), {"positive": (1, 1), "not antipodal": (1, 2)})
+    def test_held_by_label_counts_every_trial_and_only_trials(self):
+        self.assertEqual(compare_eval.held_by_label(A), {"positive": (1, 2), "not antipodal": (1, 2)})
 
     def test_report_shows_differences_to_the_first_run(self):
         with tempfile.TemporaryDirectory() as tmp:
@@ -62,7 +65,7 @@ class CompareEval(unittest.TestCase):
         self.assertIn("(removed -7)", pile_b)  # pile: 4 against 11
         self.assertIn("(removed -6)", sections["all"])  # all: 35 against 41
         self.assertIn("not antipodal 1/2 (0.500)", text)
-        self.assertIn("labelled positive 1/3 (0.333)", text)
+        self.assertIn("labelled positive 2/4 (0.500)", text)
 
     def test_different_seeds_are_flagged(self):
         other = dict(B, command=["sim", "eval", "--seed", "700000"])
