@@ -1,8 +1,8 @@
 """Held-out grasp accuracy of ONNX models on one dataset, side by side.
 
     python3 -m mvgrasp_train.evaluate_onnx --data DATASET MODEL.onnx [MODEL.onnx ...] \
-        [--hold-out-families bowl] [--scenarios isolated,packed] [--families mug] [--all-views] \
-        [--misses MISSES.png [--misses-count 6]] [--smoothing-sigma-px 1.0]
+        [--hold-out-families bowl] [--scenarios isolated,packed] [--families mug] [--all-views | --training-views] \
+        [--misses MISSES.png [--misses-count 6]] [--smoothing-sigma-px 1.0] [--flips]
 
 Runs each model through onnxruntime (CPU) on the held-out instances of
 DATASET (the 80/20 split by instance of dataset.py) and prints the paper's
@@ -13,11 +13,15 @@ family, for the seen families and, apart, for the families named by
 positives marked). `--smoothing-sigma-px` blurs the predicted quality
 before the argmax as the planner does before its peak search (its default
 is 1.0 px; `metric.smooth_quality`); the default, 0, is the paper's metric
-on the network's raw output.
+on the network's raw output. `--flips` averages each view's maps with
+those of its three flips, flipped back (`flip_average`): test-time
+augmentation at four times the inference, which the planner does not do.
 Use it to compare models trained on different data on the same views: a
 model never saw the instances of another dataset made with other seeds, so
 on a dataset generated with seeds no model trained on, `--all-views` counts
-every view, not only the 20% held-out share.
+every view, not only the 20% held-out share. `--training-views` scores the
+80% a model trained on instead (the split is the same for every dataset), to
+see how far a network fits its own training views.
 """
 
 import argparse
@@ -25,16 +29,47 @@ import json
 import sys
 
 import numpy as np
-import onnxruntime
 
 from . import dataset, metric
 
 
-def predict(path, views, batch=256, sigma_px=0.0):
+def predict(path, views, batch=256, sigma_px=0.0, flips=False):
+    import onnxruntime
     session = onnxruntime.InferenceSession(path, providers=["CPUExecutionProvider"])
-    out = [session.run(["maps"], {"views": np.ascontiguousarray(views[i:i + batch])})[0]
-           for i in range(0, len(views), batch)]
-    return metric.smooth_quality(np.concatenate(out), sigma_px)
+
+    def run(v):
+        return np.concatenate([session.run(["maps"], {"views": np.ascontiguousarray(v[i:i + batch])})[0]
+                               for i in range(0, len(v), batch)])
+
+    out = flip_average(run, views) if flips else run(views)
+    return metric.smooth_quality(out, sigma_px)
+
+
+def flip_average(run, views):
+    """The maps `run` gives for `views` averaged over each view and its three
+    flips (left-right, up-down, both), every map flipped back. A single flip
+    mirrors the grasp angle, phi -> -phi, so its sin 2phi changes sign; the
+    double flip (a half turn) keeps it. Costs four passes."""
+    total = None
+    for flip_y, flip_x in ((False, False), (False, True), (True, False), (True, True)):
+        axes = tuple(a for a, f in ((2, flip_y), (3, flip_x)) if f)
+        maps = np.array(run(np.ascontiguousarray(np.flip(views, axes))), np.float32)
+        maps = np.flip(maps, axes).copy()
+        if flip_y != flip_x:
+            maps[:, 2] *= -1.0
+        total = maps if total is None else total + maps
+    return total / 4.0
+
+
+def scored_views(meta, all_views=False, training_views=False):
+    """Indices of the views to score: the held-out split (by instance, as
+    training splits), every view, or the training split."""
+    if all_views and training_views:
+        raise SystemExit("--all-views and --training-views exclude each other")
+    if all_views:
+        return list(range(len(meta)))
+    trained, held = dataset.split_by_instance(meta)
+    return trained if training_views else held
 
 
 def report(pred, ds, indices):
@@ -49,17 +84,19 @@ def main(argv=None):
     p.add_argument("--scenarios", default="", help="only views of these scenarios (comma-separated)")
     p.add_argument("--all-views", action="store_true",
                    help="every view, not the held-out split (for data made with seeds no model trained on)")
+    p.add_argument("--training-views", action="store_true",
+                   help="the training split instead of the held-out one: how well a model fits what it trained on")
     p.add_argument("--families", default="", help="only views of these families (comma-separated)")
     p.add_argument("--misses", help="draw the first model's first missed views of seen families here (PNG; "
                                     "needs matplotlib)")
     p.add_argument("--misses-count", type=int, default=6)
     p.add_argument("--smoothing-sigma-px", type=float, default=0.0,
                    help="blur the predicted quality before the argmax, as the planner does (its default: 1.0)")
+    p.add_argument("--flips", action="store_true",
+                   help="average each view's maps with its three flips' (4 passes; the planner does one)")
     args = p.parse_args(argv)
     ds = dataset.load(args.data, mmap=True)
-    _, held = dataset.split_by_instance(ds.meta)
-    if args.all_views:
-        held = list(range(len(ds.meta)))
+    held = scored_views(ds.meta, args.all_views, args.training_views)
     scenarios = {s for s in args.scenarios.split(",") if s}
     only = {f for f in args.families.split(",") if f}
 
@@ -74,7 +111,7 @@ def main(argv=None):
     seen = [i for i in held if ds.meta[i]["family"] not in unseen]
     results = {}
     for n, path in enumerate(args.models):
-        pred = predict(path, ds.views[seen], sigma_px=args.smoothing_sigma_px)
+        pred = predict(path, ds.views[seen], sigma_px=args.smoothing_sigma_px, flips=args.flips)
         results[path] = {"seen_families": report(pred, ds, seen)}
         if args.misses and n == 0:
             from . import plot
@@ -83,7 +120,7 @@ def main(argv=None):
                             f"{path}: first {len(picked)} missed views")
         if families:
             results[path]["unseen_families"] = report(
-                predict(path, ds.views[families], sigma_px=args.smoothing_sigma_px), ds, families)
+                predict(path, ds.views[families], sigma_px=args.smoothing_sigma_px, flips=args.flips), ds, families)
     print(json.dumps(results, indent=1))
     print(f"{'model':<40} {'seen':>7} {'top':>6} {'front':>6} {'side':>6} {'unseen':>7}", file=sys.stderr)
     for path, r in results.items():

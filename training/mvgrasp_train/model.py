@@ -18,15 +18,36 @@ paper's network has to place the best pixel with; the skips hand the
 decoder the finer encoder maps. The 1x1 convolutions start at zero, so a
 fresh `skip` network computes what the `narrow` one with the same other
 weights computes, and `train --init` can start it from a `narrow` run.
+
+Variant `wide`: `narrow` with twice the channels in every layer (16 ... 64
+... 16), about 4x its arithmetic, to ask whether the network's size is
+what holds its accuracy (MODEL_CARD.md: fine-tunes fit their training views
+no better than held-out ones). `widen` loads a `narrow` run into it so
+that it starts as that run's function: the old channels keep their
+weights, the new ones take no part in the old ones or the heads until
+training moves their zero weights.
 """
 
 import torch
 from torch import nn
 
-ARCHITECTURES = ("paper", "narrow", "skip")
+ARCHITECTURES = ("paper", "narrow", "skip", "wide")
 
 # `skip`: (block whose output is taken, block after whose output it is added); blocks 0-5 encode, 6-11 decode.
 SKIPS = ((1, 9), (0, 10))
+
+
+def layer_shapes(architecture):
+    """The convolutions as (in, out, kernel, stride, padding) for the
+    encoder and (in, out, kernel, stride, padding, output padding) for the
+    decoder's transposed ones."""
+    m = 2 if architecture == "wide" else 1
+    last = 32 if architecture == "paper" else 8 * m
+    a, b, c = 8 * m, 16 * m, 32 * m
+    enc = [(1, a, 9, 3, 3), (a, b, 5, 2, 2), (b, b, 5, 2, 2), (b, c, 3, 1, 1), (c, c, 3, 1, 1), (c, c, 3, 1, 1)]
+    dec = [(c, c, 3, 1, 1, 0), (c, c, 3, 1, 1, 0), (c, c, 3, 1, 1, 0), (c, b, 5, 2, 2, 1), (b, c, 5, 2, 2, 1),
+           (c, last, 9, 3, 3, 0)]
+    return enc, dec
 
 
 def _block(conv, channels):
@@ -39,14 +60,11 @@ class GraspNet(nn.Module):
         if architecture not in ARCHITECTURES:
             raise ValueError(f"unknown architecture {architecture!r}; one of {ARCHITECTURES}")
         self.architecture = architecture
-        last = 32 if architecture == "paper" else 8
-        enc = [(1, 8, 9, 3, 3), (8, 16, 5, 2, 2), (16, 16, 5, 2, 2), (16, 32, 3, 1, 1), (32, 32, 3, 1, 1),
-               (32, 32, 3, 1, 1)]
-        dec = [(32, 32, 3, 1, 1, 0), (32, 32, 3, 1, 1, 0), (32, 32, 3, 1, 1, 0), (32, 16, 5, 2, 2, 1),
-               (16, 32, 5, 2, 2, 1), (32, last, 9, 3, 3, 0)]
-        layers = [_block(nn.Conv2d(i, o, k, s, p, bias=False), o) for i, o, k, s, p in enc]
-        layers += [_block(nn.ConvTranspose2d(i, o, k, s, p, op, bias=False), o) for i, o, k, s, p, op in dec]
-        self.body = nn.Sequential(*layers)
+        enc, dec = layer_shapes(architecture)
+        last = dec[-1][1]
+        blocks = [_block(nn.Conv2d(i, o, k, s, p, bias=False), o) for i, o, k, s, p in enc]
+        blocks += [_block(nn.ConvTranspose2d(i, o, k, s, p, op, bias=False), o) for i, o, k, s, p, op in dec]
+        self.body = nn.Sequential(*blocks)
         self.heads = nn.Conv2d(last, 4, 1)
         self.skip_pairs = SKIPS if architecture == "skip" else ()
         out_channels = [o for _, o, *_ in enc + dec]
@@ -73,6 +91,39 @@ class GraspNet(nn.Module):
 def squash(raw):
     """The network's output from `GraspNet.raw`: the sigmoid on the quality logit."""
     return torch.cat([torch.sigmoid(raw[:, :1]), raw[:, 1:]], dim=1)
+
+
+def widen(model, state):
+    """Loads `state`, a `narrow` network's weights, into the `wide` network
+    `model` so that it computes what the narrow one does: each tensor goes
+    into the leading corner of the wider one, and the weights from a new
+    input channel to an old output channel (and to the heads) are zero. New
+    channels keep their fresh weights; BatchNorm statistics their defaults."""
+    if model.architecture != "wide":
+        raise ValueError(f"widen loads into a `wide` network, not {model.architecture!r}")
+    own = model.state_dict()
+    if set(own) != set(state):
+        raise ValueError(f"not the same layers: {sorted(set(own) ^ set(state))}")
+    with torch.no_grad():
+        for key, small in state.items():
+            big = own[key]
+            if small.dim() == 0:
+                big.copy_(small)
+                continue
+            corner = tuple(slice(0, n) for n in small.shape)
+            big[corner] = small
+            if small.dim() < 2:
+                continue
+            # Old outputs must not see new inputs. Conv2d and the heads are
+            # [out, in, ...]; ConvTranspose2d is [in, out, ...].
+            module = model.get_submodule(key.rsplit(".", 1)[0])
+            out_dim, in_dim = (1, 0) if isinstance(module, nn.ConvTranspose2d) else (0, 1)
+            index = [slice(None)] * big.dim()
+            index[out_dim] = slice(0, small.shape[out_dim])
+            index[in_dim] = slice(small.shape[in_dim], None)
+            big[tuple(index)] = 0.0
+    model.load_state_dict(own)
+    return model
 
 
 def train_mode(model, freeze_batchnorm=False):

@@ -1,7 +1,7 @@
 """Trains a grasp network on a `sim datagen` dataset.
 
     python3 -m mvgrasp_train.train --data DATASET --out RUN_DIR \
-        [--architecture paper|narrow] [--epochs 8] [--minutes 60] [--batch 32] \
+        [--architecture paper|narrow|skip|wide] [--epochs 8] [--minutes 60] [--batch 32] \
         [--device cuda] [--schedule cosine]
 
 Splits 80/20 by object instance, trains with MSE on the four maps and Adam
@@ -12,7 +12,7 @@ quality is above 0 (the painted positives) W times (1: plain MSE, the
 paper's loss). `--rank-weight R` adds R times `rank_loss`: minus the log
 of the softmax share of the quality logits on positive pixels, per view
 with positives (the argmax of the quality map is the metric's grasp).
-`--architecture skip` may start from a `narrow` run (`start_from`).
+`--architecture skip` or `wide` may start from a `narrow` run (`start_from`).
 Augments each training view (augment.py), and after every epoch
 evaluates the paper's grasp accuracy on the held-out instances. On a GPU
 (`--device cuda`) the training views sit in device memory and whole batches
@@ -34,7 +34,7 @@ import numpy as np
 import torch
 
 from . import augment, augment_torch, dataset, metric
-from .model import ARCHITECTURES, GraspNet, squash, train_mode
+from .model import ARCHITECTURES, GraspNet, squash, train_mode, widen
 
 
 def progress(done, total, started, extra=""):
@@ -103,9 +103,13 @@ def rank_loss(scores, target_quality):
 def start_from(model, saved, name):
     """Loads a saved run's weights into `model`: a run of the same
     architecture, or a `narrow` run into a `skip` network (its skip
-    convolutions stay at zero, so it starts as the narrow network's function)."""
+    convolutions stay at zero, so it starts as the narrow network's function)
+    or a `wide` one (`model.widen`, the same)."""
     if saved["architecture"] == model.architecture:
         model.load_state_dict(saved["state_dict"])
+        return
+    if (saved["architecture"], model.architecture) == ("narrow", "wide"):
+        widen(model, saved["state_dict"])
         return
     if (saved["architecture"], model.architecture) != ("narrow", "skip"):
         raise SystemExit(f"--init {name} is {saved['architecture']}, not {model.architecture}")

@@ -13,7 +13,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from mvgrasp_train import augment, dataset, metric, repeatability  # noqa: E402
+from mvgrasp_train import augment, dataset, evaluate_onnx, metric, repeatability  # noqa: E402
 
 
 def line_view(l, u0, v0, phi, half):
@@ -228,6 +228,37 @@ class Reader(unittest.TestCase):
         self.assertFalse({meta[i]["instance"] for i in train} & {meta[i]["instance"] for i in held})
         self.assertAlmostEqual(len(held) / 3000, 0.2, delta=0.04)
 
+
+    def test_evaluation_scores_the_held_out_split_every_view_or_the_training_split(self):
+        meta = [{"instance": f"{i // 3}:0"} for i in range(300)]
+        train, held = dataset.split_by_instance(meta)
+        self.assertEqual(evaluate_onnx.scored_views(meta), held)
+        self.assertEqual(evaluate_onnx.scored_views(meta, training_views=True), train)
+        self.assertEqual(evaluate_onnx.scored_views(meta, all_views=True), list(range(300)))
+        with self.assertRaises(SystemExit):
+            evaluate_onnx.scored_views(meta, all_views=True, training_views=True)
+
+    def test_the_flip_average_turns_the_maps_and_the_angles_back(self):
+        def equivariant(views):
+            # Quality the view itself; the angle along the view's gradient;
+            # the width its size. Flipping the input flips these maps and
+            # mirrors the angle, so the average over flips equals one pass.
+            gy, gx = np.gradient(views[:, 0], axis=(1, 2))
+            phi = np.arctan2(gy, gx)
+            return np.stack([views[:, 0], np.cos(2 * phi), np.sin(2 * phi), np.hypot(gx, gy)], axis=1)
+
+        views = np.random.default_rng(4).random((3, 1, 12, 12)).astype(np.float32)
+        one = equivariant(views)
+        self.assertGreater(np.abs(one[:, 2]).mean(), 0.3)  # the angles are not trivially 0
+        self.assertLess(np.abs(evaluate_onnx.flip_average(equivariant, views) - one).max(), 1e-5)
+
+        def leaning(views):  # prefers the left of every view: no flip keeps it
+            maps = equivariant(views)
+            maps[:, 0] = np.linspace(1.0, 0.0, views.shape[3])
+            return maps
+
+        averaged = evaluate_onnx.flip_average(leaning, views)
+        self.assertLess(np.abs(averaged[:, 0] - 0.5).max(), 1e-6)
 
 def labelled_twice(n=6, l=24, k=5):
     """Two in-memory runs of the same n views: B is A turned by symmetry k, and B's last grasp moved off."""

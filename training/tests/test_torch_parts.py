@@ -90,7 +90,7 @@ class Network(unittest.TestCase):
     def test_output_is_the_input_size_with_quality_in_0_1(self):
         import torch
         from mvgrasp_train.model import GraspNet
-        for arch in ("paper", "narrow", "skip"):
+        for arch in ("paper", "narrow", "skip", "wide"):
             for size in (72, 96):
                 out = GraspNet(arch).eval()(torch.rand(3, 1, size, size))
                 self.assertEqual(tuple(out.shape), (3, 4, size, size))
@@ -120,7 +120,7 @@ class Network(unittest.TestCase):
         import torch
         from torch import nn
         from mvgrasp_train.model import fold_batchnorm, subpixel
-        for arch in ("paper", "narrow", "skip"):
+        for arch in ("paper", "narrow", "skip", "wide"):
             folded = fold_batchnorm(self.trained_a_little(arch))
             fast = subpixel(folded)
             self.assertFalse(any(isinstance(m, nn.ConvTranspose2d) for m in fast.modules()))
@@ -157,6 +157,42 @@ class Network(unittest.TestCase):
             self.assertIn("Add", ops)
             views = np.random.default_rng(5).random((3, 1, 48, 48), dtype=np.float32)
             self.assertLess(export.compare(skip, path, views)[0], export.TOLERANCE)
+
+    def test_a_wide_network_starts_as_the_narrow_run_it_widens_and_then_learns_with_its_new_channels(self):
+        import torch
+        from mvgrasp_train import export
+        from mvgrasp_train.model import GraspNet, widen
+        from mvgrasp_train.train import start_from
+        narrow = self.trained_a_little("narrow")
+        wide = GraspNet("wide")
+        start_from(wide, {"architecture": "narrow", "state_dict": narrow.state_dict()}, "narrow run")
+        wide.eval()
+        self.assertEqual(wide.heads.in_channels, 2 * narrow.heads.in_channels)
+        self.assertGreater(sum(p.numel() for p in wide.parameters()),
+                           3.5 * sum(p.numel() for p in narrow.parameters()))
+        x = torch.rand(2, 1, 48, 48)
+        with torch.no_grad():
+            self.assertLess((wide(x) - narrow(x)).abs().max().item(), 1e-6)
+        with self.assertRaises(SystemExit):  # only narrow widens
+            start_from(GraspNet("wide"), {"architecture": "paper", "state_dict": {}}, "paper run")
+        with self.assertRaises(ValueError):
+            widen(GraspNet("narrow"), narrow.state_dict())
+        # One step moves the zero weights from new channels to the heads.
+        new_to_heads = wide.heads.weight[:, narrow.heads.in_channels:]
+        self.assertEqual(new_to_heads.abs().max().item(), 0.0)
+        opt = torch.optim.Adam(wide.parameters(), 1e-3)
+        wide.train()
+        opt.zero_grad()
+        (wide(x) - 0.5).square().mean().backward()
+        opt.step()
+        self.assertGreater(wide.heads.weight[:, narrow.heads.in_channels:].abs().max().item(), 0.0)
+        wide.eval()
+        contract = {"input_size_px": 48, "pixel_size_m": 0.0025, "width_scale_m": 0.2, "normalisation": "cube-v1"}
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "m.onnx")
+            export.export(wide, 48, path, export.contract_metadata(contract, "t-1", "sim-test"))
+            views = np.random.default_rng(6).random((3, 1, 48, 48), dtype=np.float32)
+            self.assertLess(export.compare(wide, path, views)[0], export.TOLERANCE)
 
     def test_export_matches_pytorch_and_carries_the_contract(self):
         import onnx
