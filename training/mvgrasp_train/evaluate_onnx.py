@@ -73,7 +73,9 @@ def scored_views(meta, all_views=False, training_views=False):
 
 
 def report(pred, ds, indices):
-    return metric.evaluate(pred, ds, indices, by=("scenario", "family"))
+    out = metric.evaluate(pred, ds, indices, by=("scenario", "family"))
+    out["misses"] = metric.miss_kinds(pred, ds, indices)
+    return out
 
 
 def main(argv=None):
@@ -130,6 +132,12 @@ def main(argv=None):
         print(f"{path:<40} {100 * s['accuracy']:6.1f}% "
               + " ".join(f"{100 * v.get(a, {}).get('accuracy', float('nan')):5.1f}%" for a in ("top", "front", "side"))
               + f" {100 * u:6.1f}%", file=sys.stderr)
+    for path, r in results.items():
+        m = r["seen_families"]["misses"]
+        n = max(m["views_with_positives"], 1)
+        print(f"{path}: missed {100 * m['missed_far'] / n:.1f}% with the best pixel > 2 px from every positive, "
+              f"{100 * m['missed_heads'] / n:.1f}% on one with the angle or opening off; median positives per "
+              f"view hit {m['median_positives_hit']}, missed {m['median_positives_missed']}", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -155,6 +155,34 @@ def hits(pred_maps, ds, indices):
     return out, quality
 
 
+def miss_kinds(pred_maps, ds, indices, near_px=2.0):
+    """Why the views with positives are missed: the best pixel more than
+    `near_px` from every positive (`missed_far`: which pixel wins), or
+    within it with the angle or opening off (`missed_heads`); and the median
+    number of positives of the views hit and of those missed (MODEL_CARD.md:
+    the misses are mostly views whose labels pass few grasps)."""
+    ok, _ = hits(pred_maps, ds, indices)
+    u, v, *_ = decode(pred_maps)
+    far, heads, counts = 0, 0, {True: [], False: []}
+    for k, i in enumerate(indices):
+        if ok[k] is None:
+            continue
+        truth = ds.grasps_of(i)
+        counts[ok[k]].append(len(truth))
+        if not ok[k]:
+            if np.hypot(truth[:, 0] - u[k], truth[:, 1] - v[k]).min() > near_px:
+                far += 1
+            else:
+                heads += 1
+
+    def median(xs):
+        return float(np.median(xs)) if xs else None
+
+    return {"views_with_positives": len(counts[True]) + len(counts[False]), "missed_far": far,
+            "missed_heads": heads, "median_positives_hit": median(counts[True]),
+            "median_positives_missed": median(counts[False])}
+
+
 def evaluate(pred_maps, ds, indices, threshold=0.5, by=()):
     """Accuracy of `pred_maps` [len(indices), 4, L, L] on views `indices` of `ds`.
 

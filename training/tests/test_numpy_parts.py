@@ -189,6 +189,17 @@ class Reader(unittest.TestCase):
                              {"box": {"accuracy": 1.0, "views": 1}, "mug": {"accuracy": 0.0, "views": 1}})
             # Views without positives count in no group's accuracy, and a missing key is "?".
             self.assertEqual(result["per_scenario"], {"?": {"accuracy": 0.5, "views": 2}})
+            # That miss is the heads' (on the positive, turned); a peak far off (and turned: the
+            # rectangles of this 8 px view overlap wherever they are) is the placement's.
+            kinds = metric.miss_kinds(pred, ds, [0, 1, 2])
+            self.assertEqual((kinds["views_with_positives"], kinds["missed_far"], kinds["missed_heads"]), (2, 0, 1))
+            self.assertEqual((kinds["median_positives_hit"], kinds["median_positives_missed"]), (1.0, 1.0))
+            pred[2, :, 4, 3] = ds.maps[2, :, 4, 3]
+            pred[2, :, 0, 7] = [0.95, -1.0, 0.0, 0.25]
+            kinds = metric.miss_kinds(pred, ds, [0, 1, 2])
+            self.assertEqual((kinds["missed_far"], kinds["missed_heads"]), (1, 0))
+            pred[2, :, 0, 7] = 0.0
+            self.assertEqual(metric.miss_kinds(pred, ds, [0, 1, 2])["median_positives_missed"], None)
 
     def test_rejects_another_format_version(self):
         with tempfile.TemporaryDirectory() as root:
