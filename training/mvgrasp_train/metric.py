@@ -155,13 +155,15 @@ def hits(pred_maps, ds, indices):
     return out, quality
 
 
-def miss_kinds(pred_maps, ds, indices, near_px=2.0):
+def miss_kinds(pred_maps, ds, indices, near_px=2.0, ok=None):
     """Why the views with positives are missed: the best pixel more than
     `near_px` from every positive (`missed_far`: which pixel wins), or
     within it with the angle or opening off (`missed_heads`); and the median
     number of positives of the views hit and of those missed (MODEL_CARD.md:
-    the misses are mostly views whose labels pass few grasps)."""
-    ok, _ = hits(pred_maps, ds, indices)
+    the misses are mostly views whose labels pass few grasps). `ok`: the
+    judgements of `hits`, where the caller has them already."""
+    if ok is None:
+        ok, _ = hits(pred_maps, ds, indices)
     u, v, *_ = decode(pred_maps)
     far, heads, counts = 0, 0, {True: [], False: []}
     for k, i in enumerate(indices):
@@ -188,8 +190,9 @@ def evaluate(pred_maps, ds, indices, threshold=0.5, by=()):
 
     Returns a dict: accuracy over views with positives, per view axis, and the
     share of views without positives whose best predicted quality clears
-    `threshold` (false alarms); for each meta key in `by` (scenario, family,
-    ...), `per_KEY` = `accuracy_by` of the same judgements.
+    `threshold` (false alarms); why the misses were missed (`misses`:
+    `miss_kinds` of the same judgements); for each meta key in `by`
+    (scenario, family, ...), `per_KEY` = `accuracy_by` of the same judgements.
     """
     ok, quality = hits(pred_maps, ds, indices)
     per_axis, empty, alarms = {}, 0, 0
@@ -210,6 +213,7 @@ def evaluate(pred_maps, ds, indices, threshold=0.5, by=()):
         "views_without_positives": empty,
         "false_alarm_rate": alarms / empty if empty else float("nan"),
         "false_alarm_threshold": threshold,
+        "misses": miss_kinds(pred_maps, ds, indices, ok=ok),
         **{f"per_{key}": accuracy_by(ok, [ds.meta[i].get(key, "?") for i in indices]) for key in by},
     }
 

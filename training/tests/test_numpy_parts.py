@@ -194,6 +194,7 @@ class Reader(unittest.TestCase):
             kinds = metric.miss_kinds(pred, ds, [0, 1, 2])
             self.assertEqual((kinds["views_with_positives"], kinds["missed_far"], kinds["missed_heads"]), (2, 0, 1))
             self.assertEqual((kinds["median_positives_hit"], kinds["median_positives_missed"]), (1.0, 1.0))
+            self.assertEqual(result["misses"], kinds, "evaluate reports the same counts from its own judgements")
             pred[2, :, 4, 3] = ds.maps[2, :, 4, 3]
             pred[2, :, 0, 7] = [0.95, -1.0, 0.0, 0.25]
             kinds = metric.miss_kinds(pred, ds, [0, 1, 2])
