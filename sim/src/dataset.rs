@@ -13,7 +13,10 @@
 //!   opening (m), painted quality. The ground truth of the accuracy metric.
 //! - `shard_NNNNN/meta.jsonl`: one line per view: scene seed and scenario,
 //!   object index, `instance` (unique per object instance, the key of the
-//!   train / evaluation split), family, view axis, candidates, positives.
+//!   train / evaluation split), family, view axis, candidates, positives,
+//!   and `refused`: the other candidates counted by why the labeller
+//!   refused them (`targets::LabelledView::refused`; added 2026-11-25, so
+//!   older shards lack it).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -25,7 +28,7 @@ use mvgrasp_core::{ModelContract, Planner, PlannerConfig};
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
-use crate::camera::{Camera, NoiseModel, render};
+use crate::camera::{Camera, Frame, NoiseModel, render};
 use crate::error::{Error, Result};
 use crate::eval::crease_text;
 use crate::grasp::GripperModel;
@@ -136,6 +139,7 @@ fn write_shard(dir: &Path, contract: &ModelContract, views: &[(u64, Scenario, La
             "scene_seed": seed, "scenario": scenario.name(), "object": v.object,
             "instance": format!("{seed}:{}", v.object), "family": v.family.name(),
             "view": v.axis.name(), "candidates": v.candidates, "positives": v.positives,
+            "refused": v.refused,
         });
         writeln!(meta, "{line}").map_err(|e| file_error(&path, e))?;
     }
@@ -150,6 +154,17 @@ fn scene_views(
     planner: &Planner,
     gripper: &GripperModel,
 ) -> Result<Vec<LabelledView>> {
+    let (scene, frame, mut rng) = scene_frame(seed, scenario, config)?;
+    label_frame(&scene, &frame, planner, gripper, &config.targets, &mut rng)
+}
+
+/// Scene `seed` of `scenario` as `sim datagen` renders it: the scene, the
+/// frame, and the generator the labelling then draws from (its annealing).
+pub fn scene_frame(
+    seed: u64,
+    scenario: Scenario,
+    config: &DatagenConfig,
+) -> Result<(Scene, Frame, SplitMix64)> {
     let scene = Scene::generate_from(scenario, seed, &config.catalog)?;
     let mut rng = SplitMix64::new(seed.wrapping_mul(0xD1B5_4A32_D192_ED03) ^ 0xDA7A);
     let top_down = rng.next_f64() < 0.15;
@@ -162,7 +177,7 @@ fn scene_views(
         rng = SplitMix64::new(rng.next_u64() ^ config.label_salt.wrapping_mul(0x9E37_79B9_7F4A_7C15));
     }
     let frame = render(&scene, &camera, config.noise.as_ref().map(|n| (n, &mut rng)));
-    label_frame(&scene, &frame, planner, gripper, &config.targets, &mut rng)
+    Ok((scene, frame, rng))
 }
 
 /// Generates the dataset into `out` for networks that speak `contract`.
@@ -273,6 +288,7 @@ fn write_manifest(
             "families": config.catalog.names(),
             "noise": config.noise.is_some(), "stride_px": config.targets.stride_px,
             "angles": config.targets.angles, "anneal_steps": config.targets.anneal_steps,
+            "candidate_opening": config.targets.opening.name(),
             "label_salt": config.label_salt, "neighbours": config.targets.neighbours,
             "crease_split": crease_text(PlannerConfig::default().cluster.crease.as_ref()),
         },

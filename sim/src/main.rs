@@ -15,7 +15,7 @@ use mvgrasp_sim::{
     mesh::load_meshes,
     objects::{Catalog, Family},
     scene::{Scenario, Scene},
-    targets::TargetConfig,
+    targets::{Opening, TargetConfig},
 };
 use nalgebra::Vector3;
 
@@ -81,6 +81,12 @@ enum Command {
         /// Candidate image angles per centre, spread over 180 degrees.
         #[arg(long, default_value_t = TargetConfig::default().angles)]
         angles: usize,
+        /// How wide candidates open before the margin: `chord`, the
+        /// silhouette along the closing line through the pixel (the labels
+        /// so far), or `pads`, twice its farthest reach from the pixel over
+        /// the strip the pads sweep (`targets::Opening`).
+        #[arg(long, default_value = "chord")]
+        candidate_opening: Opening,
         /// Label each object as if it stood alone (where it is): the
         /// labels its own view can tell, without its neighbours.
         #[arg(long)]
@@ -325,6 +331,7 @@ fn main() -> anyhow::Result<()> {
             no_noise,
             stride_px,
             angles,
+            candidate_opening,
             without_neighbours,
             label_salt,
             threads,
@@ -347,6 +354,7 @@ fn main() -> anyhow::Result<()> {
                 targets: TargetConfig {
                     stride_px,
                     angles,
+                    opening: candidate_opening,
                     neighbours: !without_neighbours,
                     ..TargetConfig::default()
                 },

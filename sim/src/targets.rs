@@ -5,9 +5,11 @@
 //! The views come from `mvgrasp-core` run on the rendered (noisy) frame, the
 //! code that serves. Candidate grasps sit on a pixel grid over each
 //! silhouette, at `angles` image angles, opened to the silhouette's extent
-//! along the closing direction plus a margin. Each becomes a 6-DoF grasp
-//! through `core::decode::grasp_at`, the function the planner decodes with,
-//! and is labelled by [`crate::grasp::label_grasp`]. Positives are refined by
+//! along the closing direction plus a margin ([`Opening`]). Each becomes a
+//! 6-DoF grasp through `core::decode::grasp_at`, the function the planner
+//! decodes with, and is labelled by [`crate::grasp::label_grasp`]; every
+//! candidate that is not positive is counted by why it was refused
+//! ([`LabelledView::refused`]). Positives are refined by
 //! a short simulated annealing over angle and width. A positive's score is
 //! scaled by its distance to the view centre (the paper's third term: 1 at
 //! the centre, 0.75 at the edge).
@@ -19,12 +21,14 @@
 
 use mvgrasp_core::decode::{ViewPlacement, grasp_at};
 use mvgrasp_core::rng::SplitMix64;
-use mvgrasp_core::view::silhouette_extent_px;
+use mvgrasp_core::view::{silhouette_extent_px, silhouette_reach_px};
 use mvgrasp_core::{
     Channel, GraspMaps, GraspNet, ModelContract, PlanOptions, Planner, ViewAxis, ViewBatch, ViewPolicy,
 };
 
-use nalgebra::Point3;
+use std::collections::BTreeMap;
+
+use nalgebra::{Isometry3, Point3};
 
 use crate::camera::Frame;
 use crate::error::{Error, Result};
@@ -39,6 +43,8 @@ pub struct TargetConfig {
     pub stride_px: usize,
     /// Candidate image angles per pixel, spread over 180 degrees.
     pub angles: usize,
+    /// How wide a candidate opens before the margin.
+    pub opening: Opening,
     /// Opening beyond the silhouette's extent (m).
     pub width_margin_m: f64,
     /// Disc painted per positive (px).
@@ -56,10 +62,78 @@ impl Default for TargetConfig {
         Self {
             stride_px: 3,
             angles: 8,
+            opening: Opening::Chord,
             width_margin_m: 0.01,
             paint_radius_px: 1.6,
             anneal_steps: 6,
             neighbours: true,
+        }
+    }
+}
+
+/// How wide a candidate grasp opens (before `width_margin_m` on each side).
+/// The pads sit symmetrically about the candidate's pixel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Opening {
+    /// The silhouette's extent along the closing line through the pixel
+    /// (the labels so far): off the chord's middle one pad starts inside the
+    /// object.
+    Chord,
+    /// Twice the farthest the silhouette reaches from the pixel either way,
+    /// over the strip the pads sweep (the pad width across the closing
+    /// line): the pads start outside the silhouette wherever they close.
+    Pads,
+}
+
+impl Opening {
+    /// Its command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Chord => "chord",
+            Self::Pads => "pads",
+        }
+    }
+
+    /// The opening (px) at image point `(x, y)` closing along the unit
+    /// image direction `(c, s)`, for pads `pad_width_px` wide.
+    pub fn width_px(
+        self,
+        image: &[f32],
+        l: usize,
+        x: f64,
+        y: f64,
+        (c, s): (f64, f64),
+        pad_width_px: f64,
+    ) -> f64 {
+        match self {
+            Self::Chord => silhouette_extent_px(image, l, x, y, c, s),
+            Self::Pads => {
+                let half = pad_width_px / 2.0;
+                let rows = half.ceil() as i64;
+                let far = (-rows..=rows)
+                    .map(|k| (k as f64).clamp(-half, half))
+                    .map(|o| {
+                        let (ahead, behind) = silhouette_reach_px(image, l, x - o * s, y + o * c, c, s);
+                        ahead.max(behind)
+                    })
+                    .fold(0.0, f64::max);
+                2.0 * far + 1.0
+            }
+        }
+    }
+}
+
+impl std::str::FromStr for Opening {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "chord" => Ok(Self::Chord),
+            "pads" => Ok(Self::Pads),
+            other => Err(Error::Invalid {
+                field: "candidate opening",
+                reason: format!("`{other}`: expected chord or pads"),
+            }),
         }
     }
 }
@@ -97,6 +171,12 @@ pub struct LabelledView {
     pub candidates: usize,
     /// Positives among them.
     pub positives: usize,
+    /// The other candidates, by why they were refused (their first
+    /// labelling, before any annealing): [`GraspLabel::reason`]'s keys,
+    /// plus "over stroke" (the silhouette plus margin is wider than the
+    /// stroke) and "no pose" (no insertion keeps the pads above the table,
+    /// or no surface under the pixel). They sum to `candidates - positives`.
+    pub refused: BTreeMap<&'static str, usize>,
     /// The positives themselves (after annealing): the ground-truth grasps
     /// the paper's accuracy metric compares predictions with.
     pub grasps: Vec<PixelGrasp>,
@@ -115,6 +195,9 @@ pub struct PixelGrasp {
     pub width_m: f32,
     /// Painted quality (score times the centre-distance factor).
     pub quality: f32,
+    /// The 6-DoF grasp it was labelled as (world frame; grasp frame of
+    /// `grasp.rs`), opened to `width_m`.
+    pub world_from_grasp: Isometry3<f64>,
 }
 
 /// A network that predicts nothing: the pipeline's views, without inference.
@@ -192,16 +275,21 @@ pub fn label_frame(
         let mut maps = vec![0.0f32; 4 * l * l];
         let mut candidates = 0;
         let mut grasps = Vec::new();
-        let evaluate = |phi: f64, width: f64, u: usize, v: usize| -> Option<f32> {
-            if !(width > 0.0 && width <= core_gripper.max_width_m) {
-                return None;
-            }
-            let pose = grasp_at(&placement, u, v, phi, width, &core_gripper, &plan.table, decode)?;
-            match label_grasp(label_scene, label_object, &pose, width, gripper) {
-                GraspLabel::Positive { score, .. } => Some(score),
-                _ => None,
-            }
-        };
+        let pad_width_px = f64::from(gripper.pad_width_m) / pixel_m;
+        let mut refused = BTreeMap::new();
+        let judge =
+            |phi: f64, width: f64, u: usize, v: usize| -> Result<(f32, Isometry3<f64>), &'static str> {
+                if !(width > 0.0 && width <= core_gripper.max_width_m) {
+                    return Err("over stroke");
+                }
+                let pose = grasp_at(&placement, u, v, phi, width, &core_gripper, &plan.table, decode)
+                    .ok_or("no pose")?;
+                match label_grasp(label_scene, label_object, &pose, width, gripper) {
+                    GraspLabel::Positive { score, .. } => Ok((score, pose)),
+                    label => Err(label.reason()),
+                }
+            };
+        let evaluate = |phi: f64, width: f64, u: usize, v: usize| judge(phi, width, u, v).ok();
         for v in (config.stride_px / 2..l).step_by(config.stride_px) {
             for u in (config.stride_px / 2..l).step_by(config.stride_px) {
                 if view.image[v * l + u] <= 0.0 {
@@ -211,11 +299,19 @@ pub fn label_frame(
                     let phi =
                         -std::f64::consts::FRAC_PI_2 + k as f64 * std::f64::consts::PI / config.angles as f64;
                     let (x, y) = (u as f64 + 0.5, v as f64 + 0.5);
-                    let across = silhouette_extent_px(&view.image, l, x, y, phi.cos(), phi.sin()) * pixel_m;
+                    let across =
+                        config
+                            .opening
+                            .width_px(&view.image, l, x, y, (phi.cos(), phi.sin()), pad_width_px)
+                            * pixel_m;
                     let width = across + 2.0 * config.width_margin_m;
                     candidates += 1;
-                    let Some(mut best) = evaluate(phi, width, u, v) else {
-                        continue;
+                    let (mut best, mut best_pose) = match judge(phi, width, u, v) {
+                        Ok(judged) => judged,
+                        Err(why) => {
+                            *refused.entry(why).or_insert(0) += 1;
+                            continue;
+                        }
                     };
                     // Simulated annealing over angle and width from this positive.
                     let (mut best_phi, mut best_width) = (phi, width);
@@ -225,13 +321,13 @@ pub fn label_frame(
                             0.05 * (1.0 - step as f64 / config.anneal_steps.max(1) as f64) + 1e-3;
                         let try_phi = cur_phi + 0.12 * rng.gaussian();
                         let try_width = (cur_width + 0.005 * rng.gaussian()).max(0.005);
-                        let Some(score) = evaluate(try_phi, try_width, u, v) else {
+                        let Some((score, pose)) = evaluate(try_phi, try_width, u, v) else {
                             continue;
                         };
                         if score >= cur || rng.next_f64() < (f64::from(score - cur) / temperature).exp() {
                             (cur_phi, cur_width, cur) = (try_phi, try_width, score);
                             if cur > best {
-                                (best_phi, best_width, best) = (cur_phi, cur_width, cur);
+                                (best_phi, best_width, best, best_pose) = (cur_phi, cur_width, cur, pose);
                             }
                         }
                     }
@@ -248,6 +344,7 @@ pub fn label_frame(
                         phi: phi as f32,
                         width_m: best_width as f32,
                         quality,
+                        world_from_grasp: best_pose,
                     });
                     let r = config.paint_radius_px;
                     let reach = r.ceil() as i64;
@@ -282,6 +379,7 @@ pub fn label_frame(
             maps,
             candidates,
             positives: grasps.len(),
+            refused,
             grasps,
         });
     }

@@ -19,6 +19,15 @@ fn filled(image: &[f32], l: usize, x: f64, y: f64) -> bool {
 /// image direction `(c, s)`, both ways, bridging gaps of one pixel: the
 /// opening a grasp there needs, in pixels.
 pub fn silhouette_extent_px(image: &[f32], l: usize, x: f64, y: f64, c: f64, s: f64) -> f64 {
+    let (ahead, behind) = silhouette_reach_px(image, l, x, y, c, s);
+    ahead + behind + 1.0
+}
+
+/// How far the silhouette reaches from image point `(x, y)` along the unit
+/// image direction `(c, s)` and against it (px, from the point), bridging
+/// gaps of one pixel: the two halves of [`silhouette_extent_px`] less the
+/// point's own pixel. 0 where nothing shows within 1.5 px.
+pub fn silhouette_reach_px(image: &[f32], l: usize, x: f64, y: f64, c: f64, s: f64) -> (f64, f64) {
     let reach = |sign: f64| {
         let (mut t, mut last) = (0.0, 0.0);
         while t < l as f64 {
@@ -31,7 +40,7 @@ pub fn silhouette_extent_px(image: &[f32], l: usize, x: f64, y: f64, c: f64, s: 
         }
         last
     };
-    reach(1.0) + reach(-1.0) + 1.0
+    (reach(1.0), reach(-1.0))
 }
 
 /// The share of the disc of radius `r_px` around `(x, y)` that shows the object.

@@ -353,9 +353,11 @@ mod grasp_labels {
         let wide = box_scene([0.20, 0.16, 0.10]);
         let label = label_grasp(&wide, 0, &top_down_grasp(0.0, 0.0, 0.08, V3::y()), 0.16, &g);
         assert_eq!(label, GraspLabel::TooWide);
+        assert_eq!(label.reason(), "too wide");
         // Beside the object: the pads close on air.
         let label = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.2, 0.08, V3::y()), 0.04, &g);
         assert_eq!(label, GraspLabel::Missed);
+        assert_eq!(label.reason(), "missed");
         // So low the fingertips are in the table.
         let label = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, -0.005, V3::y()), 0.04, &g);
         assert!(
@@ -368,6 +370,7 @@ mod grasp_labels {
             ),
             "{label:?}"
         );
+        assert!(label.reason().starts_with("table: "), "{}", label.reason());
         // 1 cm above the table the pads clear it, but the palm meets the box top.
         let label = label_grasp(&scene, 0, &top_down_grasp(0.0, 0.0, 0.01, V3::y()), 0.04, &g);
         assert!(
@@ -380,6 +383,7 @@ mod grasp_labels {
             ),
             "{label:?}"
         );
+        assert_eq!(label.reason(), "object: palm");
     }
 
     #[test]
@@ -405,17 +409,22 @@ mod grasp_labels {
             ),
             "{label:?}"
         );
+        assert!(label.reason().starts_with("neighbour: "), "{}", label.reason());
     }
 }
 
 mod targets {
     use mvgrasp_core::{Channel, ViewAxis};
     use mvgrasp_sim::grasp::GripperModel;
-    use mvgrasp_sim::targets::{TargetConfig, label_frame};
+    use mvgrasp_sim::targets::{Opening, TargetConfig, label_frame};
 
     use super::*;
 
     fn labelled(size: [f32; 3]) -> Vec<mvgrasp_sim::targets::LabelledView> {
+        labelled_with(size, &TargetConfig::default())
+    }
+
+    fn labelled_with(size: [f32; 3], config: &TargetConfig) -> Vec<mvgrasp_sim::targets::LabelledView> {
         let model = ObjectModel::from_parts(
             Family::Box,
             vec![(
@@ -435,10 +444,97 @@ mod targets {
             &frame,
             &planner,
             &GripperModel::robotiq_2f_140(),
-            &TargetConfig::default(),
+            config,
             &mut rng,
         )
         .unwrap()
+    }
+
+    #[test]
+    fn the_pads_opening_reaches_past_the_silhouette_over_the_pads_strip() {
+        // A disc of radius 10 px centred at (20.5, 20.5) in a 41 px view.
+        let l = 41;
+        let image: Vec<f32> = (0..l * l)
+            .map(|i| {
+                let (x, y) = ((i % l) as f64 - 20.0, (i / l) as f64 - 20.0);
+                if x * x + y * y <= 100.0 { 0.5 } else { 0.0 }
+            })
+            .collect();
+        let across = (1.0, 0.0);
+        let chord = |x, y| Opening::Chord.width_px(&image, l, x, y, across, 8.0);
+        let pads = |x, y| Opening::Pads.width_px(&image, l, x, y, across, 8.0);
+        // Through the centre (pixels 10..=30 of row 20; the half-pixel
+        // steps reach 10 px right and 10.5 px left): the middle row is the
+        // widest in the strip, so the pads need its wider side twice.
+        assert_eq!(chord(20.5, 20.5), 21.5);
+        assert_eq!(pads(20.5, 20.5), 22.0);
+        // 6 px right of the centre the chord is the same, but the pads,
+        // symmetric about the pixel, must clear the 16.5 px to its left.
+        assert_eq!(chord(26.5, 20.5), 21.5);
+        assert_eq!(pads(26.5, 20.5), 34.0);
+        // 8 px below the centre the chord through the pixel (row 28, pixels
+        // 14..=26) is short; the strip, 4 px either side, holds row 24
+        // (pixels 11..=29).
+        assert_eq!(chord(20.5, 28.5), 13.5);
+        assert_eq!(pads(20.5, 28.5), 20.0);
+        assert_eq!("pads".parse::<Opening>().unwrap(), Opening::Pads);
+        assert!(
+            "wide"
+                .parse::<Opening>()
+                .unwrap_err()
+                .to_string()
+                .contains("chord or pads")
+        );
+    }
+
+    #[test]
+    fn candidates_opened_over_the_pads_start_outside_a_box_and_lose_no_positive() {
+        let size = [0.06, 0.04, 0.10];
+        let chord = labelled(size);
+        let pads = labelled_with(
+            size,
+            &TargetConfig {
+                opening: Opening::Pads,
+                ..TargetConfig::default()
+            },
+        );
+        let pad_hits =
+            |v: &mvgrasp_sim::targets::LabelledView| v.refused.get("object: pad").copied().unwrap_or(0);
+        for (c, p) in chord.iter().zip(&pads) {
+            assert_eq!(
+                (c.axis, c.candidates),
+                (p.axis, p.candidates),
+                "the same views and candidates"
+            );
+            println!(
+                "{:?}: positives {} -> {}, pad on the object {} -> {}",
+                c.axis,
+                c.positives,
+                p.positives,
+                pad_hits(c),
+                pad_hits(p)
+            );
+        }
+        // Off the chord's middle the pads now start outside the box: the
+        // refusals for a pad in the object all but vanish (top 125 -> 0,
+        // front 219 -> 9, side 258 -> 0 when written), and no view loses a
+        // positive.
+        for (c, p) in chord.iter().zip(&pads) {
+            assert!(
+                pad_hits(p) * 10 <= pad_hits(c),
+                "{:?}: {} vs {}",
+                c.axis,
+                pad_hits(p),
+                pad_hits(c)
+            );
+            assert!(
+                p.positives >= c.positives,
+                "{:?}: {} vs {}",
+                c.axis,
+                p.positives,
+                c.positives
+            );
+        }
     }
 
     #[test]
@@ -469,6 +565,9 @@ mod targets {
         for view in &views {
             assert_eq!(view.object, 0);
             assert_eq!(view.grasps.len(), view.positives);
+            // Every candidate is a positive or refused for a named reason.
+            let refused: usize = view.refused.values().sum();
+            assert_eq!(view.positives + refused, view.candidates, "{:?}", view.refused);
             for g in &view.grasps {
                 // Each positive is painted at its own pixel, at least as high.
                 let i = g.v * l + g.u;
@@ -501,6 +600,9 @@ mod targets {
         let wide = labelled([0.20, 0.16, 0.10]);
         let top = wide.iter().find(|v| v.axis == ViewAxis::Top).unwrap();
         assert_eq!(top.positives, 0, "of {} candidates", top.candidates);
+        // And the labeller says so: most candidates are wider than the stroke.
+        let most = top.refused.iter().max_by_key(|(_, n)| **n).map(|(why, _)| *why);
+        assert_eq!(most, Some("over stroke"), "{:?}", top.refused);
     }
 }
 
@@ -542,14 +644,25 @@ fn datagen_writes_shards_its_manifest_counts() {
         let text = String::from_utf8_lossy(&maps[10..10 + header]).into_owned();
         assert!(text.contains(&format!("'shape': ({n}, 4, 96, 96)")), "{text}");
         // grasps.npy: one row of 6 per labelled positive.
-        let positives: usize = meta
-            .lines()
-            .map(|l| {
-                serde_json::from_str::<serde_json::Value>(l).unwrap()["positives"]
-                    .as_u64()
-                    .unwrap() as usize
-            })
+        let lines: Vec<serde_json::Value> = meta.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+        let positives: usize = lines
+            .iter()
+            .map(|l| l["positives"].as_u64().unwrap() as usize)
             .sum();
+        for l in &lines {
+            // Each view's refusal counts cover the candidates that are not positive.
+            let refused: u64 = l["refused"]
+                .as_object()
+                .unwrap()
+                .values()
+                .map(|n| n.as_u64().unwrap())
+                .sum();
+            assert_eq!(
+                refused + l["positives"].as_u64().unwrap(),
+                l["candidates"].as_u64().unwrap(),
+                "{l}"
+            );
+        }
         let grasps = std::fs::read(out.join(shard).join("grasps.npy")).unwrap();
         let header = usize::from(u16::from_le_bytes([grasps[8], grasps[9]]));
         assert_eq!(grasps.len(), 10 + header + positives * 6 * 4);
