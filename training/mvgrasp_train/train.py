@@ -9,7 +9,8 @@ Splits 80/20 by object instance, trains with MSE on the four maps and Adam
 RUN may be a shipped ONNX file read back by import_onnx.py).
 `--positive-weight W` weights the squared error at pixels whose target
 quality is above 0 (the painted positives) W times (1: plain MSE, the
-paper's loss). `--rank-weight R` adds R times `rank_loss`: minus the log
+paper's loss); `--balance-positives A` weighs them A / n times more again in
+a view with only n < A of them. `--rank-weight R` adds R times `rank_loss`: minus the log
 of the softmax share of the quality logits on positive pixels, per view
 with positives (the argmax of the quality map is the metric's grasp).
 `--architecture skip` or `wide` may start from a `narrow` run (`start_from`).
@@ -67,14 +68,22 @@ def evaluate(model, ds, indices, batch=128, device="cpu"):
     return result
 
 
-def weighted_mse(pred, target, positive_weight=1.0):
+def weighted_mse(pred, target, positive_weight=1.0, balance_px=0.0):
     """Mean squared error over every pixel and channel, the error at pixels
-    with a positive target quality counted `positive_weight` times."""
+    with a positive target quality counted `positive_weight` times; with
+    `balance_px` A > 0, in a view with n < A positive pixels those count
+    A / n times more again, so that every view's positives weigh at least
+    as much as A pixels' worth (views whose labels pass a few grasps on a
+    large surface are most of the misses: models/MODEL_CARD.md)."""
     error = (pred - target) ** 2
-    if positive_weight == 1.0:
+    if positive_weight == 1.0 and not balance_px:
         return torch.mean(error)
-    weight = 1.0 + (positive_weight - 1.0) * (target[:, :1] > 0).to(error.dtype)
-    return torch.mean(weight * error)
+    positive = (target[:, :1] > 0).to(error.dtype)
+    weight = positive_weight
+    if balance_px:
+        count = positive.sum(dim=(1, 2, 3), keepdim=True).clamp(min=1.0)
+        weight = positive_weight * torch.clamp(balance_px / count, min=1.0)
+    return torch.mean((1.0 + (weight - 1.0) * positive) * error)
 
 
 def rank_loss(scores, target_quality):
@@ -132,6 +141,8 @@ def main(argv=None):
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--positive-weight", type=float, default=1.0,
                    help="weight of the squared error at positive pixels (1: plain MSE)")
+    p.add_argument("--balance-positives", type=float, default=0.0, metavar="A",
+                   help="in a view with n < A positive pixels, weigh those A / n times more again (0: off)")
     p.add_argument("--rank-weight", type=float, default=0.0,
                    help="weight of rank_loss (the argmax on a positive pixel) added to the MSE (0: none)")
     p.add_argument("--rank-temperature", type=float, default=0.0,
@@ -220,7 +231,7 @@ def main(argv=None):
                     group["lr"] = args.lr * (0.02 + 0.98 * 0.5 * (1 + np.cos(np.pi * share)))
             optimiser.zero_grad()
             raw = model.raw(x)
-            loss = weighted_mse(squash(raw), y, args.positive_weight)
+            loss = weighted_mse(squash(raw), y, args.positive_weight, args.balance_positives)
             if args.rank_weight:
                 scores = raw[:, 0] if not args.rank_temperature else torch.sigmoid(raw[:, 0]) / args.rank_temperature
                 loss = loss + args.rank_weight * rank_loss(scores, y[:, 0])

@@ -13,7 +13,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from mvgrasp_train import augment, dataset, evaluate_onnx, metric, repeatability  # noqa: E402
+from mvgrasp_train import augment, dataset, evaluate_onnx, metric, refusals, repeatability  # noqa: E402
 
 
 def line_view(l, u0, v0, phi, half):
@@ -271,6 +271,26 @@ class Reader(unittest.TestCase):
 
         averaged = evaluate_onnx.flip_average(leaning, views)
         self.assertLess(np.abs(averaged[:, 0] - 0.5).max(), 1e-6)
+
+class Refusals(unittest.TestCase):
+    def test_shares_add_up_the_views_counts_largest_first(self):
+        meta = [{"candidates": 10, "positives": 2, "refused": {"object: pad": 5, "no pose": 3}},
+                {"candidates": 30, "positives": 0, "refused": {"over stroke": 20, "object: pad": 10}},
+                {"candidates": 99, "positives": 99, "refused": {}}]
+        candidates, parts = refusals.shares(meta, [0, 1])
+        self.assertEqual(candidates, 40)
+        self.assertEqual([k for k, _ in parts], ["positive", "over stroke", "object: pad", "no pose"])
+        np.testing.assert_allclose([s for _, s in parts], [2 / 40, 20 / 40, 15 / 40, 3 / 40])
+        self.assertAlmostEqual(sum(s for _, s in parts), 1.0)
+        self.assertIn("2 views, 40 candidates: positive 5.0%, over stroke 50.0%", refusals.line("x", meta, [0, 1]))
+
+    def test_data_without_refusal_counts_is_refused_with_a_reason(self):
+        with tempfile.TemporaryDirectory() as root:
+            write_dataset(root)
+            with self.assertRaises(SystemExit) as e:
+                refusals.main(["--data", root])
+            self.assertIn("without refusal counts", str(e.exception))
+
 
 def labelled_twice(n=6, l=24, k=5):
     """Two in-memory runs of the same n views: B is A turned by symmetry k, and B's last grasp moved off."""

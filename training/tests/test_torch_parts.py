@@ -264,6 +264,27 @@ class Loss(unittest.TestCase):
         self.assertAlmostEqual(float(weighted_mse(pred, target, 1.0)), (positive + rest) / 16, places=6)
         self.assertAlmostEqual(float(weighted_mse(pred, target, 10.0)), (10 * positive + rest) / 16, places=6)
 
+    def test_balance_weighs_the_positives_of_views_with_few_of_them_more(self):
+        import torch
+        from mvgrasp_train.train import weighted_mse
+        target = torch.zeros(2, 4, 2, 2)
+        target[0, 0, 0, 0] = 0.6  # view 0: one positive pixel
+        target[1, 0, :, :1] = 0.6  # view 1: two
+        pred = torch.full((2, 4, 2, 2), 0.1)
+        positive, rest = 0.25 + 3 * 0.01, 4 * 0.01  # per positive pixel; per other pixel
+        # A = 2: view 0's positive counts 2 / 1 times more, view 1's (n = A) do not.
+        view0 = 3 * 2 * positive + 3 * rest
+        view1 = 2 * 3 * positive + 2 * rest
+        self.assertAlmostEqual(float(weighted_mse(pred, target, 3.0, 2.0)), (view0 + view1) / 32, places=6)
+        # A = 4: 4 times and twice.
+        view0 = 3 * 4 * positive + 3 * rest
+        view1 = 2 * 3 * 2 * positive + 2 * rest
+        self.assertAlmostEqual(float(weighted_mse(pred, target, 3.0, 4.0)), (view0 + view1) / 32, places=6)
+        # A view without positives is unchanged, and 0 turns it off.
+        empty = torch.zeros(1, 4, 2, 2)
+        self.assertAlmostEqual(float(weighted_mse(pred[:1], empty, 3.0, 4.0)), 0.01, places=7)
+        self.assertEqual(float(weighted_mse(pred, target, 3.0, 0.0)), float(weighted_mse(pred, target, 3.0)))
+
     def test_rank_loss_is_minus_the_log_of_the_softmax_share_on_positives(self):
         import math
 
