@@ -128,6 +128,9 @@ def check(ds):
     positives = sum(1 for m in meta if m["positives"] > 0)
     if positives != manifest["views_with_positives"]:
         problems.append(f"{positives} views with positives, manifest says {manifest['views_with_positives']}")
+    # Refusal counts (written since 2026-11-25): every candidate is a positive or refused.
+    if any("refused" in m and sum(m["refused"].values()) + m["positives"] != m["candidates"] for m in meta):
+        problems.append("refused + positives differ from candidates in meta.jsonl")
     painted = int(np.count_nonzero(np.any(graspable, axis=(1, 2))))
     if painted != positives:
         problems.append(f"{painted} views have painted quality, {positives} have positives")

@@ -170,6 +170,12 @@ class Reader(unittest.TestCase):
             result = metric.evaluate(ds.maps, ds, [0, 1, 2])
             self.assertEqual(result["accuracy"], 1.0)
             self.assertEqual(result["views_without_positives"], 1)
+            # Refusal counts that do not add up to the candidates are caught.
+            ds.meta[0].update(candidates=5, refused={"object: pad": 3, "no pose": 1})
+            self.assertEqual(dataset.check(ds), [])
+            ds.meta[0]["refused"]["no pose"] = 2
+            self.assertTrue(any("refused" in p for p in dataset.check(ds)))
+            ds.meta[0]["refused"]["no pose"] = 1
             # A painted pixel without its grasp row is caught.
             ds.maps[1, :, 1, 1] = [0.5, 1.0, 0.0, 0.2]
             self.assertTrue(any("painted" in p for p in dataset.check(ds)))
