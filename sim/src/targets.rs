@@ -289,7 +289,6 @@ pub fn label_frame(
                     label => Err(label.reason()),
                 }
             };
-        let evaluate = |phi: f64, width: f64, u: usize, v: usize| judge(phi, width, u, v).ok();
         for v in (config.stride_px / 2..l).step_by(config.stride_px) {
             for u in (config.stride_px / 2..l).step_by(config.stride_px) {
                 if view.image[v * l + u] <= 0.0 {
@@ -321,7 +320,7 @@ pub fn label_frame(
                             0.05 * (1.0 - step as f64 / config.anneal_steps.max(1) as f64) + 1e-3;
                         let try_phi = cur_phi + 0.12 * rng.gaussian();
                         let try_width = (cur_width + 0.005 * rng.gaussian()).max(0.005);
-                        let Some((score, pose)) = evaluate(try_phi, try_width, u, v) else {
+                        let Ok((score, pose)) = judge(try_phi, try_width, u, v) else {
                             continue;
                         };
                         if score >= cur || rng.next_f64() < (f64::from(score - cur) / temperature).exp() {
