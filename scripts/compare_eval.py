@@ -7,7 +7,10 @@ on the tuning seeds before a model or planner change lands.
 For each run, summed over the settings it ran: objects removed, attempts,
 success per attempt and the failure causes, per scenario and in all; then
 how often the tried grasps held, by their analytic label (the table
-`eval.md` prints per family), and the share the labeller calls positive.
+`eval.md` prints per family), and the share the labeller calls positive;
+then each episode's first attempt, whose frame is the same for every run
+on these seeds (a paired comparison; later frames depend on what earlier
+attempts did): how many the labeller calls positive and how many held.
 The first run is the reference; the others show their difference to it.
 Standard library only.
 """
@@ -57,6 +60,15 @@ def held_by_label(run):
     return {label: (held[label], tried[label]) for label in tried}
 
 
+def first_attempts(run):
+    """(episodes with an attempt, first attempts labelled positive, first
+    attempts that held). An episode's first frame depends only on the seed,
+    scenario and episode, not on the planner, so runs on the same seeds are
+    compared here on the same frames."""
+    firsts = [e["attempts"][0] for e in run.get("episodes", []) if e["attempts"]]
+    return len(firsts), sum(a[5] == "positive" for a in firsts), sum(a[0] == "ok" for a in firsts)
+
+
 def per_attempt(c):
     return c["removed"] / c["attempts"] if c["attempts"] else float("nan")
 
@@ -87,6 +99,12 @@ def report(paths):
         positive = held.get("positive", (0, 0))[1]
         share = f"; labelled positive {positive}/{tried} ({positive / tried:.3f})" if tried else ""
         lines.append(f"  {name:24s} {cells}{share}")
+    lines.append("\nfirst attempts, on the same frames for every run (labelled positive / held, of episodes)")
+    for name, run in zip(names, runs):
+        n, positive, held = first_attempts(run)
+        if n:
+            lines.append(f"  {name:24s} {n} episodes: labelled positive {positive} ({positive / n:.3f}), "
+                         f"held {held} ({held / n:.3f})")
     return "\n".join(lines)
 
 

@@ -49,6 +49,13 @@ class CompareEval(unittest.TestCase):
     def test_held_by_label_counts_every_trial_and_only_trials(self):
         self.assertEqual(compare_eval.held_by_label(A), {"positive": (1, 2), "not antipodal": (1, 2)})
 
+    def test_first_attempts_are_each_episode_s_first(self):
+        two = dict(A, episodes=A["episodes"] + [{"scenario": "pile", "attempts": []},
+                                                 {"scenario": "clutter", "attempts": [A["episodes"][0]["attempts"][1]]}])
+        # Episodes: A's (first attempt held, positive); one with no attempt; one whose first slipped.
+        self.assertEqual(compare_eval.first_attempts(two), (2, 1, 1))
+        self.assertEqual(compare_eval.first_attempts(B), (0, 0, 0))
+
     def test_report_shows_differences_to_the_first_run(self):
         with tempfile.TemporaryDirectory() as tmp:
             paths = []
@@ -66,6 +73,8 @@ class CompareEval(unittest.TestCase):
         self.assertIn("(removed -6)", sections["all"])  # all: 35 against 41
         self.assertIn("not antipodal 1/2 (0.500)", text)
         self.assertIn("labelled positive 2/4 (0.500)", text)
+        self.assertIn("a                        1 episodes: labelled positive 1 (1.000), held 1 (1.000)", text)
+        self.assertNotIn("b                        0 episodes", text)  # B has no episodes: no line
 
     def test_different_seeds_are_flagged(self):
         other = dict(B, command=["sim", "eval", "--seed", "700000"])

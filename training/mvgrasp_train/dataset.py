@@ -161,3 +161,20 @@ def summary(ds):
             f"{len(ds.grasps)} labelled grasps) of {len({m['instance'] for m in ds.meta})} object "
             f"instances, families {', '.join(families)}; split {len(train)} train / {len(held)} eval "
             f"views; views {ds.views.shape}, maps {ds.maps.shape}")
+
+
+def sample_objects(meta, indices, n, rng):
+    """Whole objects of `indices` in `rng`'s order (every view of an
+    instance, or none) until there are at least `n` views; sorted. The
+    per-epoch evaluation scores objects' picks across their views
+    (`metric.object_picks`), which a sample of single views would cut."""
+    by_instance = {}
+    for i in indices:
+        by_instance.setdefault(meta[i].get("instance", i), []).append(i)
+    groups = list(by_instance.values())
+    picked = []
+    for k in rng.permutation(len(groups)):
+        if len(picked) >= n:
+            break
+        picked.extend(groups[k])
+    return np.sort(np.asarray(picked, dtype=np.int64))

@@ -185,17 +185,22 @@ def miss_kinds(pred_maps, ds, indices, near_px=2.0, ok=None):
             "median_positives_missed": median(counts[False])}
 
 
-def evaluate(pred_maps, ds, indices, threshold=0.5, by=()):
+def evaluate(pred_maps, ds, indices, threshold=0.5, by=(), object_threshold=0.1):
     """Accuracy of `pred_maps` [len(indices), 4, L, L] on views `indices` of `ds`.
 
     Returns a dict: accuracy over views with positives, per view axis, and the
     share of views without positives whose best predicted quality clears
     `threshold` (false alarms); why the misses were missed (`misses`:
-    `miss_kinds` of the same judgements); for each meta key in `by`
+    `miss_kinds` of the same judgements); the objects' picks under the
+    planner's `all` view policy at quality `object_threshold` (`objects`:
+    `object_picks`), and the same over each scene's views (`scenes`: the
+    first pick of a clear-the-table run); for each meta key in `by`
     (scenario, family, ...), `per_KEY` = `accuracy_by` of the same judgements.
     """
     ok, quality = hits(pred_maps, ds, indices)
     per_axis, empty, alarms = {}, 0, 0
+    instances = [ds.meta[i].get("instance", f"view {i}") for i in indices]
+    scenes = [ds.meta[i].get("scene_seed", f"view {i}") for i in indices]
     for k, i in enumerate(indices):
         if ok[k] is None:
             empty += 1
@@ -214,7 +219,56 @@ def evaluate(pred_maps, ds, indices, threshold=0.5, by=()):
         "false_alarm_rate": alarms / empty if empty else float("nan"),
         "false_alarm_threshold": threshold,
         "misses": miss_kinds(pred_maps, ds, indices, ok=ok),
+        "objects": object_picks(ok, quality, instances, object_threshold),
+        "scenes": object_picks(ok, quality, scenes, object_threshold),
         **{f"per_{key}": accuracy_by(ok, [ds.meta[i].get(key, "?") for i in indices]) for key in by},
+    }
+
+
+def object_picks(ok, quality, instances, threshold=0.1):
+    """The planner's `all` view policy, judged per object: each object
+    (`instances[k]`, meta `instance`) acts on the best predicted grasp over
+    all its views, and only if its quality clears `threshold` (the planner's
+    `min_quality`). `ok` and `quality` are `hits`' judgements and best
+    qualities for the same views.
+
+    Returns `objects_with_positives` (some view of it has a positive) and
+    `objects_without_positives`; `accuracy`: of the former, the share whose
+    best grasp across views is a positive, at any quality (a view without
+    positives winning is a miss); `picked`: the same share, counting only
+    grasps at or above `threshold` (what a clear-the-table run can pick);
+    `attempts`: the objects of either kind whose best grasp clears
+    `threshold`, and `attempt_precision`: the share of those that are
+    positives; `false_alarm_rate`: the share of objects without any positive
+    whose best grasp clears `threshold`. Views' accuracy (`evaluate`) judges
+    each view alone; this weighs quality across views too, which a model
+    that inflates the quality of views without positives loses.
+    """
+    best = {}
+    for k, name in enumerate(instances):
+        # Ties go to the earlier view, as the planner's order does.
+        if name not in best or quality[k] > quality[best[name]]:
+            best[name] = k
+    has_positive = {}
+    for k, name in enumerate(instances):
+        has_positive[name] = has_positive.get(name, False) or ok[k] is not None
+    with_pos = [n for n in best if has_positive[n]]
+    without = [n for n in best if not has_positive[n]]
+    correct = {n: bool(ok[best[n]]) for n in best}
+    tried = [n for n in best if quality[best[n]] >= threshold]
+
+    def share(num, den):
+        return num / den if den else float("nan")
+
+    return {
+        "threshold": threshold,
+        "objects_with_positives": len(with_pos),
+        "objects_without_positives": len(without),
+        "accuracy": share(sum(correct[n] for n in with_pos), len(with_pos)),
+        "picked": share(sum(correct[n] and quality[best[n]] >= threshold for n in with_pos), len(with_pos)),
+        "attempts": len(tried),
+        "attempt_precision": share(sum(correct[n] for n in tried), len(tried)),
+        "false_alarm_rate": share(sum(quality[best[n]] >= threshold for n in without), len(without)),
     }
 
 

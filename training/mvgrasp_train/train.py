@@ -10,7 +10,10 @@ RUN may be a shipped ONNX file read back by import_onnx.py).
 `--positive-weight W` weights the squared error at pixels whose target
 quality is above 0 (the painted positives) W times (1: plain MSE, the
 paper's loss); `--balance-positives A` weighs them A / n times more again in
-a view with only n < A of them. `--rank-weight R` adds R times `rank_loss`: minus the log
+a view with only n < A of them; `--empty-view-weight E` weighs the quality
+error of views without positives E times; `--peak-weight P` adds P times
+`peak_loss`, each view's highest predicted quality against its labels'
+highest (0 without positives). `--rank-weight R` adds R times `rank_loss`: minus the log
 of the softmax share of the quality logits on positive pixels, per view
 with positives (the argmax of the quality map is the metric's grasp).
 `--architecture skip` or `wide` may start from a `narrow` run (`start_from`).
@@ -68,22 +71,43 @@ def evaluate(model, ds, indices, batch=128, device="cpu"):
     return result
 
 
-def weighted_mse(pred, target, positive_weight=1.0, balance_px=0.0):
+def weighted_mse(pred, target, positive_weight=1.0, balance_px=0.0, empty_view_weight=1.0):
     """Mean squared error over every pixel and channel, the error at pixels
     with a positive target quality counted `positive_weight` times; with
     `balance_px` A > 0, in a view with n < A positive pixels those count
     A / n times more again, so that every view's positives weigh at least
     as much as A pixels' worth (views whose labels pass a few grasps on a
-    large surface are most of the misses: models/MODEL_CARD.md)."""
+    large surface are most of the misses: models/MODEL_CARD.md). With
+    `empty_view_weight` E, the quality error of a view without any positive
+    pixel counts E times: the planner's `all` policy acts on the best
+    grasp across an object's views, so a quality that rises on a view the
+    labels refuse beats the object's good view (`metric.object_picks`)."""
     error = (pred - target) ** 2
-    if positive_weight == 1.0 and not balance_px:
+    if positive_weight == 1.0 and not balance_px and empty_view_weight == 1.0:
         return torch.mean(error)
     positive = (target[:, :1] > 0).to(error.dtype)
     weight = positive_weight
     if balance_px:
         count = positive.sum(dim=(1, 2, 3), keepdim=True).clamp(min=1.0)
         weight = positive_weight * torch.clamp(balance_px / count, min=1.0)
-    return torch.mean((1.0 + (weight - 1.0) * positive) * error)
+    weight = 1.0 + (weight - 1.0) * positive
+    if empty_view_weight != 1.0:
+        empty = (positive.sum(dim=(1, 2, 3), keepdim=True) == 0).to(error.dtype)
+        quality = torch.zeros(1, error.shape[1], 1, 1, dtype=error.dtype, device=error.device)
+        quality[:, 0] = 1.0
+        weight = weight * (1.0 + (empty_view_weight - 1.0) * empty * quality)
+    return torch.mean(weight * error)
+
+
+def peak_loss(quality, target_quality):
+    """Mean over views of the squared difference between the view's highest
+    predicted quality and its highest target quality (0 for a view without
+    positives). The planner's `all` policy compares those peaks across an
+    object's views and acts on the highest (`metric.object_picks`); the MSE
+    over every pixel hardly sees one pixel's peak on a view the labels
+    refuse."""
+    top = quality.flatten(1).max(dim=1).values
+    return torch.mean((top - target_quality.flatten(1).max(dim=1).values) ** 2)
 
 
 def rank_loss(scores, target_quality):
@@ -143,6 +167,10 @@ def main(argv=None):
                    help="weight of the squared error at positive pixels (1: plain MSE)")
     p.add_argument("--balance-positives", type=float, default=0.0, metavar="A",
                    help="in a view with n < A positive pixels, weigh those A / n times more again (0: off)")
+    p.add_argument("--empty-view-weight", type=float, default=1.0, metavar="E",
+                   help="weigh the quality error of views without positive pixels E times (1: off)")
+    p.add_argument("--peak-weight", type=float, default=0.0, metavar="P",
+                   help="weight of peak_loss (each view's highest quality against its labels' highest) (0: none)")
     p.add_argument("--rank-weight", type=float, default=0.0,
                    help="weight of rank_loss (the argmax on a positive pixel) added to the MSE (0: none)")
     p.add_argument("--rank-temperature", type=float, default=0.0,
@@ -180,7 +208,7 @@ def main(argv=None):
     print(dataset.summary(ds), file=sys.stderr)
     print(f"training on {len(train_idx)} views; held-out instances {len(eval_idx)} views; "
           f"unseen families {sorted(unseen)} {len(family_idx)} views", file=sys.stderr)
-    eval_sample = np.sort(rng.permutation(eval_idx)[:args.eval_views])
+    eval_sample = dataset.sample_objects(ds.meta, eval_idx, args.eval_views, rng)
 
     device = torch.device(args.device)
     model = GraspNet(args.architecture)
@@ -231,7 +259,9 @@ def main(argv=None):
                     group["lr"] = args.lr * (0.02 + 0.98 * 0.5 * (1 + np.cos(np.pi * share)))
             optimiser.zero_grad()
             raw = model.raw(x)
-            loss = weighted_mse(squash(raw), y, args.positive_weight, args.balance_positives)
+            loss = weighted_mse(squash(raw), y, args.positive_weight, args.balance_positives, args.empty_view_weight)
+            if args.peak_weight:
+                loss = loss + args.peak_weight * peak_loss(torch.sigmoid(raw[:, 0]), y[:, 0])
             if args.rank_weight:
                 scores = raw[:, 0] if not args.rank_temperature else torch.sigmoid(raw[:, 0]) / args.rank_temperature
                 loss = loss + args.rank_weight * rank_loss(scores, y[:, 0])
@@ -248,6 +278,7 @@ def main(argv=None):
         if epoch % args.eval_every == 0 or done or epoch == args.epochs:
             result = evaluate(model, ds, eval_sample, device=device)
             entry.update(eval_loss=result["loss"], eval_accuracy=result["accuracy"],
+                         eval_object_accuracy=result["objects"]["accuracy"],
                          eval_per_view={k: v["accuracy"] for k, v in result["per_view"].items()})
         entry["elapsed_s"] = time.time() - started
         log.write(json.dumps(entry) + "\n")

@@ -120,6 +120,30 @@ class Metric(unittest.TestCase):
         self.assertAlmostEqual(float(smoothed[0, 0].sum()), 0.9 + 0.7 * 25, places=4)
         self.assertIs(metric.smooth_quality(maps, 0.0), maps)
 
+    def test_an_object_acts_on_its_best_view_and_only_above_the_threshold(self):
+        # Object a: its top view is right at 0.3, its side view (no positives) peaks at 0.6 and wins.
+        # Object b: right on its front view at 0.5, wrong on its top view at 0.2: right.
+        # Object c: no positives anywhere, peaks at 0.15: a false alarm at 0.1, none at 0.2.
+        # Object d: right at 0.05 only: right at any quality, not picked at 0.1.
+        ok = [True, None, False, True, None, None, True]
+        quality = [0.3, 0.6, 0.2, 0.5, 0.15, 0.05, 0.05]
+        instances = ["a", "a", "b", "b", "c", "c", "d"]
+        r = metric.object_picks(ok, quality, instances, threshold=0.1)
+        self.assertEqual((r["objects_with_positives"], r["objects_without_positives"]), (3, 1))
+        self.assertAlmostEqual(r["accuracy"], 2 / 3)  # b and d
+        self.assertAlmostEqual(r["picked"], 1 / 3)  # b only: d is below 0.1
+        self.assertEqual(r["attempts"], 3)  # a, b, c
+        self.assertAlmostEqual(r["attempt_precision"], 1 / 3)
+        self.assertEqual(r["false_alarm_rate"], 1.0)
+        r = metric.object_picks(ok, quality, instances, threshold=0.2)
+        self.assertEqual((r["attempts"], r["false_alarm_rate"]), (2, 0.0))
+        # Lowering a's side view below its top view makes a right.
+        quality[1] = 0.25
+        self.assertAlmostEqual(metric.object_picks(ok, quality, instances)["accuracy"], 1.0)
+        # No object at all: shares are nan, not a division by zero.
+        empty = metric.object_picks([], [], [])
+        self.assertTrue(np.isnan(empty["accuracy"]) and np.isnan(empty["false_alarm_rate"]))
+
 
 def write_dataset(root, l=8):
     """A two-shard dataset in `sim datagen`'s format, written by hand."""
@@ -170,6 +194,10 @@ class Reader(unittest.TestCase):
             result = metric.evaluate(ds.maps, ds, [0, 1, 2])
             self.assertEqual(result["accuracy"], 1.0)
             self.assertEqual(result["views_without_positives"], 1)
+            # One view per instance here: the objects' picks are the views'.
+            self.assertEqual((result["objects"]["objects_with_positives"], result["objects"]["accuracy"]), (2, 1.0))
+            # No scene_seed in this meta: each view is its own scene.
+            self.assertEqual(result["scenes"]["objects_with_positives"], 2)
             # Refusal counts that do not add up to the candidates are caught.
             ds.meta[0].update(candidates=5, refused={"object: pad": 3, "no pose": 1})
             self.assertEqual(dataset.check(ds), [])
@@ -246,6 +274,21 @@ class Reader(unittest.TestCase):
         self.assertFalse({meta[i]["instance"] for i in train} & {meta[i]["instance"] for i in held})
         self.assertAlmostEqual(len(held) / 3000, 0.2, delta=0.04)
 
+
+    def test_the_evaluation_sample_takes_whole_objects(self):
+        meta = [{"instance": f"s:{k // 3}"} for k in range(30)] + [{"instance": "lone"}]
+        indices = list(range(31))
+        picked = dataset.sample_objects(meta, indices, 7, np.random.default_rng(1))
+        self.assertGreaterEqual(len(picked), 7)
+        self.assertEqual(list(picked), sorted(picked))
+        names = {meta[i]["instance"] for i in picked}
+        # Every view of each object drawn, none of the rest; at most one object past 7 views.
+        self.assertEqual(sorted(picked), sorted(i for i in indices if meta[i]["instance"] in names))
+        self.assertLessEqual(len(names), 3 + 1)
+        self.assertEqual(len(dataset.sample_objects(meta, indices, 0, np.random.default_rng(1))), 0)
+        self.assertEqual(len(dataset.sample_objects(meta, indices, 1000, np.random.default_rng(1))), 31)
+        # Only the given indices are drawn from.
+        self.assertTrue(set(dataset.sample_objects(meta, [0, 1, 2, 30], 100, np.random.default_rng(0))) <= {0, 1, 2, 30})
 
     def test_evaluation_scores_the_held_out_split_every_view_or_the_training_split(self):
         meta = [{"instance": f"{i // 3}:0"} for i in range(300)]

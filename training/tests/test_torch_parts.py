@@ -285,6 +285,42 @@ class Loss(unittest.TestCase):
         self.assertAlmostEqual(float(weighted_mse(pred[:1], empty, 3.0, 4.0)), 0.01, places=7)
         self.assertEqual(float(weighted_mse(pred, target, 3.0, 0.0)), float(weighted_mse(pred, target, 3.0)))
 
+    def test_the_empty_view_weight_counts_only_the_quality_of_views_without_positives(self):
+        import torch
+        from mvgrasp_train.train import weighted_mse
+        target = torch.zeros(2, 4, 2, 2)
+        target[0, 0, 0, 0] = 0.6  # view 0: one positive pixel; view 1: none
+        pred = torch.full((2, 4, 2, 2), 0.1)
+        positive, rest = 0.25 + 3 * 0.01, 4 * 0.01  # per positive pixel; per other pixel
+        plain = (3 * positive + 3 * rest + 4 * rest) / 32
+        self.assertAlmostEqual(float(weighted_mse(pred, target, 3.0)), plain, places=6)
+        # E = 5: view 1's quality channel (4 pixels at 0.01) counts 5 times; its other channels
+        # and view 0 are unchanged.
+        self.assertAlmostEqual(float(weighted_mse(pred, target, 3.0, 0.0, 5.0)), plain + 4 * 4 * 0.01 / 32,
+                               places=6)
+        # Alone (positive weight 1) it applies too, and with balance on view 0 it still touches only view 1.
+        self.assertAlmostEqual(float(weighted_mse(pred, target, 1.0, 0.0, 5.0)),
+                               (positive + 3 * rest + 4 * rest + 4 * 4 * 0.01) / 32, places=6)
+        self.assertAlmostEqual(float(weighted_mse(pred, target, 3.0, 4.0, 5.0) - weighted_mse(pred, target, 3.0, 4.0)),
+                               4 * 4 * 0.01 / 32, places=6)
+
+    def test_peak_loss_compares_each_view_s_highest_quality_with_its_labels(self):
+        import torch
+        from mvgrasp_train.train import peak_loss
+        target = torch.zeros(2, 3, 3)
+        target[0, 1, 1] = 0.8  # view 0: one positive at 0.8; view 1: none
+        pred = torch.full((2, 3, 3), 0.1)
+        pred[0, 2, 2] = 0.5  # view 0 peaks at 0.5 (elsewhere: the peaks are compared, not the pixels)
+        pred[1, 0, 0] = 0.4  # view 1 peaks at 0.4 where it should be 0
+        self.assertAlmostEqual(float(peak_loss(pred, target)), ((0.5 - 0.8) ** 2 + 0.4 ** 2) / 2, places=6)
+        # Only the peak pixel of each view gets a gradient.
+        pred.requires_grad_(True)
+        peak_loss(pred, target).backward()
+        self.assertEqual(int((pred.grad != 0).sum()), 2)
+        self.assertLess(float(pred.grad[0, 2, 2]), 0.0)  # raise view 0's peak
+        self.assertGreater(float(pred.grad[1, 0, 0]), 0.0)  # lower view 1's
+        self.assertEqual(float(peak_loss(target, target)), 0.0)
+
     def test_rank_loss_is_minus_the_log_of_the_softmax_share_on_positives(self):
         import math
 
