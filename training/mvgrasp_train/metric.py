@@ -244,13 +244,11 @@ def object_picks(ok, quality, instances, threshold=0.1):
     each view alone; this weighs quality across views too, which a model
     that inflates the quality of views without positives loses.
     """
-    best = {}
+    best, has_positive = {}, {}
     for k, name in enumerate(instances):
         # Ties go to the earlier view, as the planner's order does.
         if name not in best or quality[k] > quality[best[name]]:
             best[name] = k
-    has_positive = {}
-    for k, name in enumerate(instances):
         has_positive[name] = has_positive.get(name, False) or ok[k] is not None
     with_pos = [n for n in best if has_positive[n]]
     without = [n for n in best if not has_positive[n]]
