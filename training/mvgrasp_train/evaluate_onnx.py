@@ -78,6 +78,11 @@ def scored_views(meta, all_views=False, training_views=False):
     return trained if training_views else held
 
 
+def rounded(x):
+    """Two decimals, or "-" for a median of no views (None)."""
+    return "-" if x is None else f"{x:.2f}"
+
+
 def report(pred, ds, indices, object_threshold=0.1):
     return metric.evaluate(pred, ds, indices, by=("scenario", "family"), object_threshold=object_threshold)
 
@@ -145,7 +150,10 @@ def main(argv=None):
               f"{100 * o['accuracy']:.1f}% of {o['objects_with_positives']} right, {100 * o['picked']:.1f}% right "
               f"at quality >= {o['threshold']}; {o['attempts']} attempts, {100 * o['attempt_precision']:.1f}% right; "
               f"{100 * o['false_alarm_rate']:.1f}% of {o['objects_without_positives']} objects without positives "
-              "tried", file=sys.stderr)
+              f"tried; {o['wrong_view']} won by a view without positives, {o['another_view_right']} missed with "
+              f"another view right; median peak of views without positives "
+              f"{rounded(r['seen_families']['median_peak_without_positives'])} "
+              f"(with: {rounded(r['seen_families']['median_peak_with_positives'])})", file=sys.stderr)
         c = r["seen_families"]["scenes"]
         print(f"{path}: scenes' first picks (the best grasp over every view of a scene): {100 * c['accuracy']:.1f}% "
               f"of {c['objects_with_positives']} right", file=sys.stderr)

@@ -177,12 +177,9 @@ def miss_kinds(pred_maps, ds, indices, near_px=2.0, ok=None):
             else:
                 heads += 1
 
-    def median(xs):
-        return float(np.median(xs)) if xs else None
-
     return {"views_with_positives": len(counts[True]) + len(counts[False]), "missed_far": far,
-            "missed_heads": heads, "median_positives_hit": median(counts[True]),
-            "median_positives_missed": median(counts[False])}
+            "missed_heads": heads, "median_positives_hit": median_of(counts[True]),
+            "median_positives_missed": median_of(counts[False])}
 
 
 def evaluate(pred_maps, ds, indices, threshold=0.5, by=(), object_threshold=0.1):
@@ -190,7 +187,8 @@ def evaluate(pred_maps, ds, indices, threshold=0.5, by=(), object_threshold=0.1)
 
     Returns a dict: accuracy over views with positives, per view axis, and the
     share of views without positives whose best predicted quality clears
-    `threshold` (false alarms); why the misses were missed (`misses`:
+    `threshold` (false alarms), and the median best quality of views without
+    and with positives (`median_peak_*`); why the misses were missed (`misses`:
     `miss_kinds` of the same judgements); the objects' picks under the
     planner's `all` view policy at quality `object_threshold` (`objects`:
     `object_picks`), and the same over each scene's views (`scenes`: the
@@ -218,6 +216,8 @@ def evaluate(pred_maps, ds, indices, threshold=0.5, by=(), object_threshold=0.1)
         "views_without_positives": empty,
         "false_alarm_rate": alarms / empty if empty else float("nan"),
         "false_alarm_threshold": threshold,
+        "median_peak_without_positives": median_of([q for q, h in zip(quality, ok) if h is None]),
+        "median_peak_with_positives": median_of([q for q, h in zip(quality, ok) if h is not None]),
         "misses": miss_kinds(pred_maps, ds, indices, ok=ok),
         "objects": object_picks(ok, quality, instances, object_threshold),
         "scenes": object_picks(ok, quality, scenes, object_threshold),
@@ -240,9 +240,12 @@ def object_picks(ok, quality, instances, threshold=0.1):
     `attempts`: the objects of either kind whose best grasp clears
     `threshold`, and `attempt_precision`: the share of those that are
     positives; `false_alarm_rate`: the share of objects without any positive
-    whose best grasp clears `threshold`. Views' accuracy (`evaluate`) judges
-    each view alone; this weighs quality across views too, which a model
-    that inflates the quality of views without positives loses.
+    whose best grasp clears `threshold`; `wrong_view`: objects with positives
+    whose winning view has none, and `another_view_right`: objects missed
+    while another of their views was right (what a perfect view choice
+    would win). Views' accuracy (`evaluate`) judges each view alone; this
+    weighs quality across views too, which a model that inflates the
+    quality of views without positives loses.
     """
     best, has_positive = {}, {}
     for k, name in enumerate(instances):
@@ -253,6 +256,7 @@ def object_picks(ok, quality, instances, threshold=0.1):
     with_pos = [n for n in best if has_positive[n]]
     without = [n for n in best if not has_positive[n]]
     correct = {n: bool(ok[best[n]]) for n in best}
+    another_right = {n for k, n in enumerate(instances) if ok[k] and not correct[n]}
     tried = [n for n in best if quality[best[n]] >= threshold]
 
     def share(num, den):
@@ -267,7 +271,14 @@ def object_picks(ok, quality, instances, threshold=0.1):
         "attempts": len(tried),
         "attempt_precision": share(sum(correct[n] for n in tried), len(tried)),
         "false_alarm_rate": share(sum(quality[best[n]] >= threshold for n in without), len(without)),
+        "wrong_view": sum(ok[best[n]] is None for n in with_pos),
+        "another_view_right": len(another_right),
     }
+
+
+def median_of(values):
+    """The median as a float; None for no values."""
+    return float(np.median(values)) if len(values) else None
 
 
 def accuracy_by(ok, names):

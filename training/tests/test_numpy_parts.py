@@ -135,11 +135,14 @@ class Metric(unittest.TestCase):
         self.assertEqual(r["attempts"], 3)  # a, b, c
         self.assertAlmostEqual(r["attempt_precision"], 1 / 3)
         self.assertEqual(r["false_alarm_rate"], 1.0)
+        # a is the one miss: its winning view has no positives, and its top view was right.
+        self.assertEqual((r["wrong_view"], r["another_view_right"]), (1, 1))
         r = metric.object_picks(ok, quality, instances, threshold=0.2)
         self.assertEqual((r["attempts"], r["false_alarm_rate"]), (2, 0.0))
         # Lowering a's side view below its top view makes a right.
         quality[1] = 0.25
-        self.assertAlmostEqual(metric.object_picks(ok, quality, instances)["accuracy"], 1.0)
+        r = metric.object_picks(ok, quality, instances)
+        self.assertEqual((r["accuracy"], r["wrong_view"], r["another_view_right"]), (1.0, 0, 0))
         # No object at all: shares are nan, not a division by zero.
         empty = metric.object_picks([], [], [])
         self.assertTrue(np.isnan(empty["accuracy"]) and np.isnan(empty["false_alarm_rate"]))
@@ -196,6 +199,9 @@ class Reader(unittest.TestCase):
             self.assertEqual(result["views_without_positives"], 1)
             # One view per instance here: the objects' picks are the views'.
             self.assertEqual((result["objects"]["objects_with_positives"], result["objects"]["accuracy"]), (2, 1.0))
+            # The targets' peaks: 0.8 on both views with positives, 0 on the one without.
+            self.assertAlmostEqual(result["median_peak_with_positives"], 0.8, places=6)
+            self.assertEqual(result["median_peak_without_positives"], 0.0)
             # No scene_seed in this meta: each view is its own scene.
             self.assertEqual(result["scenes"]["objects_with_positives"], 2)
             # Refusal counts that do not add up to the candidates are caught.
