@@ -204,21 +204,17 @@ impl GraspLabel {
     /// collides: what it hit and with which part (the two pads are one).
     /// The keys of `sim datagen`'s per-view refusal counts.
     pub fn reason(&self) -> &'static str {
-        match self {
-            Self::Positive { .. } => "positive",
-            Self::TooWide => "too wide",
-            Self::Missed => "missed",
-            Self::NotAntipodal { .. } => "not antipodal",
-            Self::Twists { .. } => "twists",
-            Self::Collision { obstacle, part } => match (obstacle, part) {
-                (Obstacle::Table, HandPart::Palm) => "table: palm",
-                (Obstacle::Table, _) => "table: pad",
-                (Obstacle::Target, HandPart::Palm) => "object: palm",
-                (Obstacle::Target, _) => "object: pad",
-                (Obstacle::Neighbour(_), HandPart::Palm) => "neighbour: palm",
-                (Obstacle::Neighbour(_), HandPart::Closing) => "neighbour: closing",
-                (Obstacle::Neighbour(_), _) => "neighbour: pad",
-            },
+        let Self::Collision { obstacle, part } = self else {
+            return self.name();
+        };
+        match (obstacle, part) {
+            (Obstacle::Table, HandPart::Palm) => "table: palm",
+            (Obstacle::Table, _) => "table: pad",
+            (Obstacle::Target, HandPart::Palm) => "object: palm",
+            (Obstacle::Target, _) => "object: pad",
+            (Obstacle::Neighbour(_), HandPart::Palm) => "neighbour: palm",
+            (Obstacle::Neighbour(_), HandPart::Closing) => "neighbour: closing",
+            (Obstacle::Neighbour(_), _) => "neighbour: pad",
         }
     }
 }
