@@ -55,7 +55,7 @@ pub mod select;
 pub mod sensor;
 pub mod view;
 
-pub use decode::{DecodeConfig, Grasp};
+pub use decode::{DecodeConfig, Grasp, Repairs};
 pub use error::{Error, Result};
 pub use geometry::{QUATERNION_NORM_TOLERANCE, Workspace, camera_looking_at, pose_from_parts, world_up};
 pub use gripper::Gripper;

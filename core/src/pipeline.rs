@@ -7,9 +7,9 @@ use std::time::{Duration, Instant};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::decode::{
-    Collision, DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, Verdict, ViewPlacement, contact_slopes,
-    decode_view, deepen, fit_opening, hand_collision, hand_out_of_view, rank_grasps_vetted, squaring_turn,
-    turn_away,
+    Collision, DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, Repairs, Verdict, ViewPlacement,
+    contact_slopes, decode_view, deepen, fit_opening, hand_collision, hand_out_of_view, rank_grasps_vetted,
+    squaring_turn, turn_away,
 };
 use crate::error::{Error, Result};
 use crate::geometry::Workspace;
@@ -582,7 +582,7 @@ impl Planner {
                         }
                     }
                 };
-                let g = match repaired {
+                let mut g = match repaired {
                     Some((world_from_grasp, width_m)) => Grasp {
                         world_from_grasp,
                         width_m,
@@ -590,6 +590,8 @@ impl Planner {
                     },
                     None => g,
                 };
+                g.repairs.turned_away = turned_away;
+                g.repairs.refit = repaired.is_some() && !turned_away;
                 // Square the grasp to the surfaces its pads would meet, as
                 // seen, when the turned grasp passes the check too: of the
                 // grasps tried in physics outside the labels' friction cone,
@@ -615,6 +617,10 @@ impl Planner {
                         turned_square += 1;
                         Grasp {
                             world_from_grasp,
+                            repairs: Repairs {
+                                squared: true,
+                                ..g.repairs
+                            },
                             ..g
                         }
                     }
@@ -633,9 +639,13 @@ impl Planner {
                         |pose| hit(pose, g.width_m).is_none(),
                     )
                 });
-                let g = match deeper.flatten() {
+                let mut g = match deeper.flatten() {
                     Some(world_from_grasp) => Grasp {
                         world_from_grasp,
+                        repairs: Repairs {
+                            deepened: true,
+                            ..g.repairs
+                        },
                         ..g
                     },
                     None => g,
@@ -648,6 +658,7 @@ impl Planner {
                         && hand.out_of_view_last
                         && hand_out_of_view(&g.world_from_grasp, g.width_m, &options.gripper, hand, v)
                 });
+                g.repairs.out_of_view = unseen;
                 if unseen {
                     Verdict::Defer(g, RankedLast::OutOfView)
                 } else if turned_away {

@@ -216,6 +216,13 @@ fn grasp_message(g: &Grasp) -> pb::Grasp {
         pixel_u: g.pixel[0],
         pixel_v: g.pixel[1],
         angle_rad: g.angle_rad,
+        repairs: Some(pb::GraspRepairs {
+            refit: g.repairs.refit,
+            turned_away: g.repairs.turned_away,
+            squared: g.repairs.squared,
+            deepened: g.repairs.deepened,
+            out_of_view: g.repairs.out_of_view,
+        }),
     }
 }
 

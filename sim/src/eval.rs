@@ -48,14 +48,14 @@ use mvgrasp_client::{PlannerClient, pb};
 use mvgrasp_core::rng::SplitMix64;
 use mvgrasp_core::{
     ClusterConfig, CreaseConfig, FieldOfView, GraspNet, ModelContract, PlanOptions, Planner, PlannerConfig,
-    Reattach, ViewPolicy, Workspace,
+    Reattach, Repairs, ViewAxis, ViewPolicy, Workspace,
 };
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use parry3d::math::Pose;
 
 use crate::camera::{Camera, Frame, NoiseModel, render};
 use crate::error::{Error, Result};
-use crate::grasp::{GraspLabel, GripperModel, HandPart, Obstacle, label_grasp};
+use crate::grasp::{GraspLabel, GripperModel, HandPart, Obstacle, label_grasp, pose_of, weight_torque_nm};
 use crate::objects::{Catalog, Family};
 use crate::physics::{Basket, TrialConfig, TrialOutcome, run_trial};
 use crate::pile::{SettleConfig, settle};
@@ -313,6 +313,29 @@ pub struct Attempt {
     /// the network learns from against physics on the planner's own grasps
     /// ([`label_table`]).
     pub label: Option<(&'static str, Family)>,
+    /// The view the planner found the grasp in.
+    pub view: ViewAxis,
+    /// The grasp's peak pixel `[u, v]` in that view.
+    pub pixel: [u32; 2],
+    /// What the planner's hand check changed about it after decoding.
+    pub repairs: Repairs,
+    /// The lever the planner could see: the horizontal distance (m) from
+    /// the closing line to the centroid of the object as it segmented it
+    /// ([`horizontal_lever_m`]).
+    pub centroid_lever_m: f64,
+    /// For a physics trial: the torque (N m) of the object's weight about
+    /// the closing line, from its true mass and centre of mass
+    /// ([`weight_torque_nm`]), at the grasp as planned.
+    pub torque_nm: Option<f32>,
+}
+
+/// The horizontal distance (m) from `point` to the closing line (grasp `x`
+/// through the grasp origin): the lever the weight of a mass at `point`
+/// has about that line, whose torque the pads must hold by friction alone.
+pub fn horizontal_lever_m(world_from_grasp: &Isometry3<f64>, point: &Point3<f64>) -> f64 {
+    let closing = world_from_grasp.rotation * Vector3::x();
+    let offset = point - Point3::from(world_from_grasp.translation.vector);
+    closing.cross(&offset).z.abs()
 }
 
 /// What a collision on approach hit, with which part of the hand, and
@@ -500,6 +523,13 @@ pub struct PlannedGrasp {
     pub quality: f32,
     /// Centroid of the detected object it grasps (world).
     pub object_centroid: Point3<f64>,
+    /// The view it was found in.
+    pub view: ViewAxis,
+    /// Its peak pixel `[u, v]` in that view.
+    pub pixel: [u32; 2],
+    /// What the planner's hand check changed about it after decoding (none
+    /// from a server that does not say).
+    pub repairs: Repairs,
 }
 
 /// Whatever plans: the pipeline in this process, or a running server.
@@ -545,6 +575,9 @@ impl GraspSource for InProcess<'_> {
                     width_m: g.width_m,
                     quality: g.quality,
                     object_centroid: Point3::from(object.frame.world_from_object.translation.vector),
+                    view: g.view,
+                    pixel: g.pixel,
+                    repairs: g.repairs,
                 })
             })
             .collect())
@@ -623,12 +656,21 @@ impl GraspSource for Remote {
             .runtime
             .block_on(self.client.plan(request))
             .map_err(|e| Error::Scene(format!("server: {e}")))?;
-        Ok(response
+        response
             .grasps
             .iter()
             .filter_map(|g| {
                 let object = response.objects.iter().find(|o| o.id == g.object_id)?;
-                Some(PlannedGrasp {
+                let view = match view_axis(g.view()) {
+                    Some(view) => view,
+                    None => {
+                        return Some(Err(Error::Scene(format!(
+                            "server: grasp {:?} names no view",
+                            g.pose
+                        ))));
+                    }
+                };
+                Some(Ok(PlannedGrasp {
                     world_from_grasp: pose_from_message(g.pose.as_ref()),
                     width_m: g.width_m,
                     quality: g.quality,
@@ -637,9 +679,28 @@ impl GraspSource for Remote {
                             .translation
                             .vector,
                     ),
-                })
+                    view,
+                    pixel: [g.pixel_u, g.pixel_v],
+                    repairs: g.repairs.map_or_else(Repairs::default, |r| Repairs {
+                        refit: r.refit,
+                        turned_away: r.turned_away,
+                        squared: r.squared,
+                        deepened: r.deepened,
+                        out_of_view: r.out_of_view,
+                    }),
+                }))
             })
-            .collect())
+            .collect()
+    }
+}
+
+/// The planner's view of a message's view axis; `None` for an unspecified one.
+fn view_axis(axis: pb::ViewAxis) -> Option<ViewAxis> {
+    match axis {
+        pb::ViewAxis::Unspecified => None,
+        pb::ViewAxis::Top => Some(ViewAxis::Top),
+        pb::ViewAxis::Front => Some(ViewAxis::Front),
+        pb::ViewAxis::Side => Some(ViewAxis::Side),
     }
 }
 
@@ -719,14 +780,17 @@ pub fn run_episode(
             break;
         };
         let mut label = None;
+        let mut torque_nm = None;
         let (failure, collision) = match scene.object_at(&grasp.object_centroid, 0.01) {
             None => (Some(Failure::ObjectMissed), None),
             Some(target) => {
+                let torque = weight_torque_nm(&scene.objects[target], &pose_of(&grasp.world_from_grasp));
                 let (tried, poses) = try_grasp(&scene, target, &grasp, config);
                 let (failure, collision) = match tried {
                     Tried::Collided(site) => (Some(Failure::CollisionOnApproach), Some(site)),
                     Tried::Trial(failure, name) => {
                         label = Some((name, scene.objects[target].model.family));
+                        torque_nm = Some(torque);
                         (failure, None)
                     }
                 };
@@ -761,6 +825,11 @@ pub fn run_episode(
             failure,
             collision,
             label,
+            view: grasp.view,
+            pixel: grasp.pixel,
+            repairs: grasp.repairs,
+            centroid_lever_m: horizontal_lever_m(&grasp.world_from_grasp, &grasp.object_centroid),
+            torque_nm,
         });
     }
     Ok(episode)
@@ -828,11 +897,15 @@ fn try_grasp(
 /// One episode as a record of `eval.json`'s `episodes`: its scenario,
 /// setting and seed, objects at the start, removed and fallen off, how it
 /// ended, and each attempt in order as `[outcome, quality, width_mm,
-/// down_deg, plan_ms, label, family]`: "ok", a failure's name, or for a
-/// collision on approach what was hit ([`CollisionSite::name`]); the
-/// approach's angle below the horizontal (90: straight down); for a physics
-/// trial the grasp's analytic label ([`GraspLabel::name`]) and its object's
-/// family, else null.
+/// down_deg, plan_ms, label, family, view, [u, v], centroid_lever_mm,
+/// torque_nm, repairs]`: "ok", a failure's name, or for a collision on
+/// approach what was hit ([`CollisionSite::name`]); the approach's angle
+/// below the horizontal (90: straight down); for a physics trial the
+/// grasp's analytic label ([`GraspLabel::name`]) and its object's family,
+/// else null; the view the grasp came from and its peak pixel there; the
+/// lever the planner could see ([`Attempt::centroid_lever_m`]); for a
+/// physics trial the weight's torque about the closing line, else null; the
+/// names of the planner's repairs to it ([`Repairs::names`]).
 pub fn episode_record(e: &Episode, setting: &str) -> serde_json::Value {
     let round = |v: f64, places: i32| (v * 10f64.powi(places)).round() / 10f64.powi(places);
     let attempts: Vec<serde_json::Value> = e
@@ -855,6 +928,11 @@ pub fn episode_record(e: &Episode, setting: &str) -> serde_json::Value {
                 round(a.plan_ms, 2),
                 label,
                 family,
+                a.view.name(),
+                a.pixel,
+                round(a.centroid_lever_m * 1e3, 1),
+                a.torque_nm.map(|t| round(f64::from(t), 3)),
+                a.repairs.names(),
             ])
         })
         .collect();
@@ -917,6 +995,110 @@ pub fn label_table(episodes: &[&Episode]) -> String {
             per_family.join(" | ")
         ));
     }
+    out
+}
+
+/// Upper edges (N m) of the torque bins of [`provenance_table`].
+pub const TORQUE_BINS_NM: [f64; 5] = [0.05, 0.1, 0.2, 0.4, f64::INFINITY];
+/// Upper edges (mm) of the lever bins of [`provenance_table`].
+pub const LEVER_BINS_MM: [f64; 4] = [10.0, 20.0, 40.0, f64::INFINITY];
+
+/// Markdown tables of where the tried grasps came from and how far from
+/// their grip the weight acted: every attempt by the view its grasp came
+/// from and by what the planner's hand check changed about it ([`Repairs`];
+/// held, collisions on approach, slips during lift, other failures); then
+/// the physics trials by the torque of the object's weight about the
+/// closing line ([`TORQUE_BINS_NM`]) and by the lever the planner could see
+/// ([`LEVER_BINS_MM`]), with the share that held and that slipped during
+/// lift. Empty without attempts.
+pub fn provenance_table(episodes: &[&Episode]) -> String {
+    let attempts: Vec<&Attempt> = episodes.iter().flat_map(|e| &e.attempts).collect();
+    if attempts.is_empty() {
+        return String::new();
+    }
+    let share = |n: usize, of: usize| {
+        if of == 0 {
+            "-".to_owned()
+        } else {
+            format!("{:.2} ({n}/{of})", n as f64 / of as f64)
+        }
+    };
+    let failed = |of: &[&Attempt], f: Option<Failure>| of.iter().filter(|a| a.failure == f).count();
+    let row = |name: &str, of: &[&Attempt]| {
+        let ok = failed(of, None);
+        let collided = failed(of, Some(Failure::CollisionOnApproach));
+        let slips = failed(of, Some(Failure::SlipDuringLift));
+        format!(
+            "| {name} | {} | {} | {collided} | {slips} | {} |\n",
+            of.len(),
+            share(ok, of.len()),
+            of.len() - ok - collided - slips
+        )
+    };
+    let header = "| attempts | held | collision on approach | slip during lift | other failures |\n\
+                  |---|---:|---:|---:|---:|---:|\n";
+    let mut out = format!("The attempts by the view their grasp came from:\n\n| view {header}");
+    for view in ViewAxis::ALL {
+        let of: Vec<&Attempt> = attempts.iter().copied().filter(|a| a.view == view).collect();
+        out.push_str(&row(view.name(), &of));
+    }
+    out.push_str(&format!(
+        "\nThe attempts by what the planner's hand check changed about their grasp (a grasp may count in \
+         several rows):\n\n| repair {header}"
+    ));
+    let untouched: Vec<&Attempt> = attempts
+        .iter()
+        .copied()
+        .filter(|a| a.repairs == Repairs::default())
+        .collect();
+    out.push_str(&row("none (as decoded)", &untouched));
+    for name in Repairs::ALL_NAMES {
+        let of: Vec<&Attempt> = attempts
+            .iter()
+            .copied()
+            .filter(|a| a.repairs.names().contains(&name))
+            .collect();
+        out.push_str(&row(name, &of));
+    }
+    let trials: Vec<&Attempt> = attempts.into_iter().filter(|a| a.torque_nm.is_some()).collect();
+    if trials.is_empty() {
+        return out;
+    }
+    let mut binned = |title: &str, edges: &[f64], value: &dyn Fn(&Attempt) -> f64| {
+        out.push_str(&format!(
+            "\n| {title} | physics trials | held | slip during lift |\n|---|---:|---:|---:|\n"
+        ));
+        let mut lower = 0.0;
+        for &upper in edges {
+            let of: Vec<&Attempt> = trials
+                .iter()
+                .copied()
+                .filter(|a| (lower..upper).contains(&value(a)))
+                .collect();
+            let bin = if upper.is_finite() {
+                format!("{lower}-{upper}")
+            } else {
+                format!(">= {lower}")
+            };
+            out.push_str(&format!(
+                "| {bin} | {} | {} | {} |\n",
+                of.len(),
+                share(failed(&of, None), of.len()),
+                share(failed(&of, Some(Failure::SlipDuringLift)), of.len())
+            ));
+            lower = upper;
+        }
+    };
+    binned(
+        "torque of the weight about the closing line (N m)",
+        &TORQUE_BINS_NM,
+        &|a| a.torque_nm.map_or(f64::NAN, f64::from),
+    );
+    binned(
+        "lever the planner saw: closing line to the segmented centroid (mm)",
+        &LEVER_BINS_MM,
+        &|a| a.centroid_lever_m * 1e3,
+    );
     out
 }
 

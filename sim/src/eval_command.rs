@@ -11,7 +11,7 @@ use mvgrasp_server::settings::ModelSettings;
 use mvgrasp_sim::camera::render;
 use mvgrasp_sim::eval::{
     Episode, EpisodeConfig, Failure, GraspSource, InProcess, Remote, Setting, Summary, collision_list,
-    episode_record, episode_scene, label_table, markdown_table, run_episode,
+    episode_record, episode_scene, label_table, markdown_table, provenance_table, run_episode,
 };
 use mvgrasp_sim::files::{DrawnGrasp, write_grasp_snapshot};
 use mvgrasp_sim::scene::Scenario;
@@ -206,6 +206,27 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
     let table = markdown_table(&summaries);
     let collisions = collision_list(&summaries);
     let labels = label_table(&episodes_in_order.iter().map(|(_, e)| e).collect::<Vec<_>>());
+    // Where the tried grasps came from, per setting (every scenario).
+    let provenance: String = settings
+        .iter()
+        .enumerate()
+        .map(|(k, setting)| {
+            let of: Vec<&Episode> = episodes_in_order
+                .iter()
+                .filter(|(j, _)| *j == k)
+                .map(|(_, e)| e)
+                .collect();
+            let table = provenance_table(&of);
+            if table.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "\n### Where the tried grasps came from: {}\n\n{table}",
+                    setting.name()
+                )
+            }
+        })
+        .collect();
     let objects_line = format!(" Objects drawn from: {}.", config.catalog.names().join(", "));
     let report = format!(
         "# Clear-the-table in simulation\n\n- revision: `{}`\n- model: `{}` ({}, data {}), {} px views of {} mm\n- command: `{}`\n- seeds {}..{} per scenario, the same scenes and cameras for every setting; {:.0} s on {} threads\n\n{table}\n\
@@ -215,7 +236,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
          physics trial the scene keeps what the trial did to it (pushed neighbours, dropped objects) and \
          settles; objects knocked off the table are not removed. `pile`: 4-6 objects dropped \
          into a box, settled in rapier3d, the box lifted away. `clutter` is 15-20 objects \
-         spread over the table.{}\n{}{}{}",
+         spread over the table.{}\n{}{}{}{}",
         git_revision(),
         model_name,
         contract.model_version,
@@ -238,6 +259,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         } else {
             format!("\n{labels}")
         },
+        provenance,
         if snapshot_files.is_empty() {
             String::new()
         } else {

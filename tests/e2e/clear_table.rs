@@ -89,7 +89,14 @@ fn episodes_through_the_service_match_episodes_in_process() {
             let tried: Vec<_> = e
                 .attempts
                 .iter()
-                .map(|a| (a.failure, a.quality, a.world_from_grasp.translation.vector))
+                .map(|a| {
+                    (
+                        a.failure,
+                        a.quality,
+                        a.world_from_grasp.translation.vector,
+                        (a.view, a.pixel, a.torque_nm, a.repairs),
+                    )
+                })
                 .collect();
             (e.removed, e.end, tried)
         };
@@ -101,6 +108,9 @@ fn episodes_through_the_service_match_episodes_in_process() {
         );
         for (a, b) in l.2.iter().zip(&s.2) {
             assert_eq!(a.0, b.0);
+            // The same view, pixel and repairs come back over gRPC.
+            assert_eq!((a.3.0, a.3.1, a.3.3), (b.3.0, b.3.1, b.3.3), "{a:?} vs {b:?}");
+            assert_eq!(a.3.2.is_some(), b.3.2.is_some(), "{a:?} vs {b:?}");
             assert!(
                 (a.1 - b.1).abs() < 1e-6 && (a.2 - b.2).norm() < 1e-9,
                 "{a:?} vs {b:?}"

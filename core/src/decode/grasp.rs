@@ -59,6 +59,50 @@ impl Default for DecodeConfig {
     }
 }
 
+/// What the planner changed about a grasp after decoding it from its
+/// pixel, or why it ranked the grasp late: each step of the hand check
+/// that acted on it ([`HandConfig`]). All false: the grasp as decoded.
+///
+/// [`HandConfig`]: crate::decode::HandConfig
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub struct Repairs {
+    /// The pads would have met the object's own seen points: opened to
+    /// what was seen of it, and re-checked.
+    pub refit: bool,
+    /// The hand would have hit a neighbour: turned about the approach away
+    /// from it (ranked after the grasps that passed as planned).
+    pub turned_away: bool,
+    /// Turned about the approach to square the pads to the surfaces they
+    /// meet, as seen.
+    pub squared: bool,
+    /// Moved deeper along the approach, where the hand and the table allow.
+    pub deepened: bool,
+    /// A pad reaches past its view's border, maybe onto a part of the
+    /// object never seen (ranked last).
+    pub out_of_view: bool,
+}
+
+impl Repairs {
+    /// Every step's name, in the order [`Repairs::names`] gives them.
+    pub const ALL_NAMES: [&'static str; 5] = ["refit", "turned away", "squared", "deepened", "out of view"];
+
+    /// The steps that acted, by name ([`Repairs::ALL_NAMES`]), in that
+    /// order; empty for none.
+    pub fn names(self) -> Vec<&'static str> {
+        [
+            self.refit,
+            self.turned_away,
+            self.squared,
+            self.deepened,
+            self.out_of_view,
+        ]
+        .into_iter()
+        .zip(Self::ALL_NAMES)
+        .filter_map(|(on, name)| on.then_some(name))
+        .collect()
+    }
+}
+
 /// A 6-DoF parallel-jaw grasp in the world.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Grasp {
@@ -81,6 +125,8 @@ pub struct Grasp {
     ///
     /// [`HandConfig::square_turn_deg`]: crate::decode::HandConfig::square_turn_deg
     pub angle_rad: f32,
+    /// What the planner's hand check changed about it after decoding.
+    pub repairs: Repairs,
 }
 
 /// A rendered view and where its object sits in the world.
@@ -146,6 +192,7 @@ pub fn decode_view(
             view: view.axis,
             pixel: [u as u32, v as u32],
             angle_rad: phi as f32,
+            repairs: Repairs::default(),
         });
     }
     grasps
@@ -231,5 +278,29 @@ fn clear_of_table(
         (limit >= 0.0).then_some(config.insertion_m.min(limit))
     } else {
         (margin + config.insertion_m * -descent >= 0.0).then_some(config.insertion_m)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Repairs;
+
+    #[test]
+    fn repairs_name_the_steps_that_acted_in_order() {
+        assert!(Repairs::default().names().is_empty());
+        let every = Repairs {
+            refit: true,
+            turned_away: true,
+            squared: true,
+            deepened: true,
+            out_of_view: true,
+        };
+        assert_eq!(every.names(), Repairs::ALL_NAMES);
+        let two = Repairs {
+            squared: true,
+            out_of_view: true,
+            ..Repairs::default()
+        };
+        assert_eq!(two.names(), ["squared", "out of view"]);
     }
 }

@@ -119,6 +119,7 @@ mod tests {
             view: ViewAxis::Top,
             pixel: [u, 0],
             angle_rad: 0.0,
+            repairs: Default::default(),
         }
     }
 

@@ -3,7 +3,8 @@
 
 use mvgrasp_core::decode::HandConfig;
 use mvgrasp_core::{
-    ClusterConfig, GraspNet, MomentsNet, Plan, PlanOptions, Planner, PlannerConfig, ViewPolicy, approach_of,
+    ClusterConfig, GraspNet, MomentsNet, Plan, PlanOptions, Planner, PlannerConfig, Repairs, ViewPolicy,
+    approach_of,
 };
 use nalgebra::{Point3, Vector3};
 
@@ -304,12 +305,20 @@ fn openings_too_narrow_for_the_object_are_re_fitted() {
         fitted.grasps.len() + fitted.refused_for_collision,
         unchecked.grasps.len()
     );
+    // Without the hand check nothing is repaired.
+    assert!(unchecked.grasps.iter().all(|g| g.repairs == Repairs::default()));
     let mut refits = 0;
     for g in &fitted.grasps {
         if refused.grasps.contains(g) {
+            assert!(!g.repairs.refit, "{g:?}");
             continue;
         }
         refits += 1;
+        // Each grasp says it was re-fitted, and nothing else.
+        assert!(
+            g.repairs.refit && !g.repairs.turned_away && !g.repairs.deepened,
+            "{g:?}"
+        );
         let original = unchecked
             .grasps
             .iter()
@@ -404,6 +413,10 @@ fn grasps_reaching_past_the_image_border_are_ranked_last() {
     assert!(past[first_past..].iter().all(|&p| p), "{past:?}");
     assert_eq!(bounded.ranked_last_out_of_view, past.len() - first_past);
     assert_eq!(free.ranked_last_out_of_view, 0);
+    // Each grasp says whether it was ranked last for the border.
+    let flagged: Vec<bool> = bounded.grasps.iter().map(|g| g.repairs.out_of_view).collect();
+    assert_eq!(flagged, past);
+    assert!(free.grasps.iter().all(|g| !g.repairs.out_of_view));
     assert_eq!(bounded.refused_for_collision, free.refused_for_collision);
 
     // In the middle of the image the check changes nothing.
@@ -457,6 +470,16 @@ fn grasps_into_a_neighbour_are_turned_away_and_ranked_after() {
     // The grasps as planned are the same; the turned come after them.
     let first_turned = turned.grasps.len() - n - turned.ranked_last_out_of_view;
     assert_eq!(turned.grasps[..first_turned], refused.grasps[..first_turned]);
+    // Each grasp says whether it was turned away.
+    let flagged: Vec<bool> = turned.grasps[..first_turned + n]
+        .iter()
+        .map(|g| g.repairs.turned_away)
+        .collect();
+    assert!(
+        flagged[..first_turned].iter().all(|&t| !t) && flagged[first_turned..].iter().all(|&t| t),
+        "{flagged:?}"
+    );
+    assert!(refused.grasps.iter().all(|g| !g.repairs.turned_away));
     for g in &turned.grasps[first_turned..first_turned + n] {
         let original = unchecked
             .grasps
@@ -575,6 +598,20 @@ fn grasps_go_deeper_where_the_hand_still_passes() {
             "moved {along} m"
         );
         moved += usize::from(along > 0.0);
+        // Each grasp says whether it went deeper; squaring is the same.
+        assert_eq!(d.repairs.deepened, along > 0.0);
+        assert!(!a.repairs.deepened);
+        assert_eq!(d.repairs.squared, a.repairs.squared);
     }
     assert!(moved > 0, "no grasp went deeper on a 12 cm box");
+    // Every grasp was kept (no caps here), so the squared ones it reports
+    // are the plan's count of squaring turns.
+    for plan in [&deeper, &as_planned] {
+        let squared = plan.grasps.iter().filter(|g| g.repairs.squared).count();
+        assert_eq!(squared, plan.turned_square);
+    }
+    assert!(
+        deeper.turned_square > 0,
+        "no grasp squared to a box turned 0.4 rad"
+    );
 }

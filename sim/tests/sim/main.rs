@@ -977,15 +977,18 @@ mod physics {
 }
 
 mod eval {
-    use mvgrasp_core::{CreaseConfig, GraspNet, MomentsNet, Planner, PlannerConfig, Reattach, ViewPolicy};
+    use mvgrasp_core::{
+        CreaseConfig, GraspNet, MomentsNet, Planner, PlannerConfig, Reattach, Repairs, ViewAxis, ViewPolicy,
+    };
     use mvgrasp_sim::camera::Camera;
     use mvgrasp_sim::camera::Frame;
     use mvgrasp_sim::eval::{
         Attempt, CollisionSite, End, Episode, EpisodeConfig, Failure, GraspSource, InProcess, PlannedGrasp,
         Setting, Summary, collision_list, crease_setting, crease_text, episode_bootstrap, episode_record,
-        episode_scene, label_table, markdown_table, objects_outside_view, run_episode, same_grasp,
+        episode_scene, horizontal_lever_m, label_table, markdown_table, objects_outside_view,
+        provenance_table, run_episode, same_grasp,
     };
-    use mvgrasp_sim::grasp::{HandPart, Obstacle};
+    use mvgrasp_sim::grasp::{HandPart, Obstacle, pose_of, weight_torque_nm};
     use mvgrasp_sim::objects::Family;
     use mvgrasp_sim::scene::Scenario;
     use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
@@ -1061,6 +1064,15 @@ mod eval {
                     failure: None,
                     collision: None,
                     label: Some(("positive", Family::Box)),
+                    view: ViewAxis::Top,
+                    pixel: [36, 40],
+                    repairs: Repairs {
+                        squared: true,
+                        deepened: true,
+                        ..Repairs::default()
+                    },
+                    centroid_lever_m: 0.01234,
+                    torque_nm: Some(0.04567),
                 },
                 Attempt {
                     plan_ms: 9.0,
@@ -1074,6 +1086,11 @@ mod eval {
                         on_the_way_in: true,
                     }),
                     label: None,
+                    view: ViewAxis::Front,
+                    pixel: [10, 71],
+                    repairs: Repairs::default(),
+                    centroid_lever_m: 0.0,
+                    torque_nm: None,
                 },
                 Attempt {
                     plan_ms: 8.0,
@@ -1083,6 +1100,11 @@ mod eval {
                     failure: Some(Failure::SlipDuringLift),
                     collision: None,
                     label: Some(("not antipodal", Family::Mug)),
+                    view: ViewAxis::Side,
+                    pixel: [0, 0],
+                    repairs: Repairs::default(),
+                    centroid_lever_m: 0.05,
+                    torque_nm: Some(0.3),
                 },
             ],
             end: End::NoGraspAboveTau,
@@ -1105,9 +1127,32 @@ mod eval {
         assert_eq!(a.len(), 3);
         assert_eq!(
             a[0],
-            serde_json::json!(["ok", 0.712, 61.4, 90.0, 12.35, "positive", "box"])
+            serde_json::json!([
+                "ok",
+                0.712,
+                61.4,
+                90.0,
+                12.35,
+                "positive",
+                "box",
+                "top",
+                [36, 40],
+                12.3,
+                0.046,
+                ["squared", "deepened"]
+            ])
         );
-        assert!(a[1][5].is_null() && a[1][6].is_null(), "{}", a[1]);
+        // No physics trial: no label, family or torque.
+        assert!(
+            a[1][5].is_null() && a[1][6].is_null() && a[1][10].is_null(),
+            "{}",
+            a[1]
+        );
+        assert_eq!(
+            (&a[1][7], &a[1][8]),
+            (&"front".into(), &serde_json::json!([10, 71]))
+        );
+        assert_eq!(a[1][11], serde_json::json!([]));
         assert_eq!(
             a[1][0],
             format!(
@@ -1118,6 +1163,10 @@ mod eval {
         assert_eq!(a[1][3], 0.0);
         assert_eq!(a[2][0], Failure::SlipDuringLift.name());
         assert_eq!((&a[2][5], &a[2][6]), (&"not antipodal".into(), &"mug".into()));
+        assert_eq!(
+            (&a[2][7], &a[2][9], &a[2][10]),
+            (&"side".into(), &50.0.into(), &0.3.into())
+        );
     }
 
     #[test]
@@ -1266,6 +1315,9 @@ mod eval {
             width_m: 0.05,
             quality: 0.9,
             object_centroid: Point3::new(x, -0.45, 0.1),
+            view: ViewAxis::Front,
+            pixel: [3, 4],
+            repairs: Repairs::default(),
         };
         let mut source = Scripted(vec![at(0.5), at(0.55)]);
         let setting = Setting::parse("all:0.1").unwrap();
@@ -1287,6 +1339,14 @@ mod eval {
             e.attempts
                 .iter()
                 .all(|a| a.failure == Some(Failure::ObjectMissed))
+        );
+        // Where each came from is kept; no trial ran, so no torque.
+        assert!(
+            e.attempts
+                .iter()
+                .all(|a| a.view == ViewAxis::Front && a.pixel == [3, 4] && a.torque_nm.is_none()),
+            "{:?}",
+            e.attempts
         );
         assert_eq!(e.end, End::NoGraspAboveTau);
     }
@@ -1310,6 +1370,9 @@ mod eval {
             width_m: 0.05,
             quality: 0.9,
             object_centroid: centroid,
+            view: ViewAxis::Top,
+            pixel: [36, 36],
+            repairs: Repairs::default(),
         };
         let mut source = Scripted(vec![over(0.0), over(0.05)]);
         let setting = Setting::parse("all:0.1").unwrap();
@@ -1334,6 +1397,132 @@ mod eval {
         );
         assert_eq!(e.end, End::NoGraspAboveTau);
         assert_eq!(e.removed, 0);
+        // Each trial records the weight's torque at the grasp as planned, in
+        // the scene as it stood: the first in the episode's scene, the second
+        // in the scene the first trial left (settled; it barely moved).
+        let torque = |dx: f64| weight_torque_nm(&scene.objects[0], &pose_of(&over(dx).world_from_grasp));
+        assert_eq!(e.attempts[0].torque_nm, Some(torque(0.0)));
+        let second = e.attempts[1].torque_nm.expect("a trial ran");
+        assert!((second - torque(0.05)).abs() < 0.01, "{second} {}", torque(0.05));
+        // The closing line (world x) runs through the centroid the planner
+        // saw, so the lever it saw is zero.
+        assert!(
+            e.attempts.iter().all(|a| a.centroid_lever_m < 1e-9),
+            "{:?}",
+            e.attempts
+        );
+    }
+
+    #[test]
+    fn the_lever_is_the_horizontal_distance_to_the_closing_line() {
+        // Closing along world x through the origin: only the offset across
+        // it, horizontally, counts (not along it, not up or down).
+        let along_x = Isometry3::identity();
+        assert!((horizontal_lever_m(&along_x, &Point3::new(0.3, 0.04, -0.2)) - 0.04).abs() < 1e-12);
+        assert!((horizontal_lever_m(&along_x, &Point3::new(0.3, -0.04, 0.5)) - 0.04).abs() < 1e-12);
+        // Turned 90 degrees about z and moved: closing along world y.
+        let along_y = Isometry3::from_parts(
+            nalgebra::Translation3::new(1.0, 2.0, 0.0),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2),
+        );
+        assert!((horizontal_lever_m(&along_y, &Point3::new(1.03, 2.5, 0.1)) - 0.03).abs() < 1e-12);
+        // A vertical closing line: the weight has no torque about it.
+        let vertical = Isometry3::from_parts(
+            nalgebra::Translation3::identity(),
+            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2),
+        );
+        assert!(horizontal_lever_m(&vertical, &Point3::new(0.05, 0.05, 0.0)) < 1e-12);
+    }
+
+    #[test]
+    fn provenance_counts_attempts_by_view_and_repair_and_trials_by_torque_and_lever() {
+        let attempt = |view, failure, torque_nm: Option<f32>, lever_mm: f64| Attempt {
+            plan_ms: 5.0,
+            world_from_grasp: Isometry3::identity(),
+            width_m: 0.05,
+            quality: 0.5,
+            failure,
+            collision: None,
+            label: torque_nm.map(|_| ("positive", Family::Box)),
+            view,
+            pixel: [0, 0],
+            repairs: Repairs::default(),
+            centroid_lever_m: lever_mm / 1e3,
+            torque_nm,
+        };
+        let slip = Some(Failure::SlipDuringLift);
+        let episode = |attempts| Episode {
+            scenario: Scenario::Packed,
+            seed: 1,
+            objects: 3,
+            removed: 0,
+            fell_off: 0,
+            attempts,
+            end: End::Cleared,
+            last_plan_ms: None,
+        };
+        let episodes = [
+            episode(vec![
+                attempt(ViewAxis::Top, None, Some(0.01), 5.0),
+                attempt(ViewAxis::Top, slip, Some(0.3), 25.0),
+                attempt(ViewAxis::Top, Some(Failure::CollisionOnApproach), None, 3.0),
+            ]),
+            episode(vec![
+                Attempt {
+                    repairs: Repairs {
+                        squared: true,
+                        deepened: true,
+                        ..Repairs::default()
+                    },
+                    ..attempt(ViewAxis::Front, slip, Some(0.5), 45.0)
+                },
+                Attempt {
+                    repairs: Repairs {
+                        deepened: true,
+                        ..Repairs::default()
+                    },
+                    ..attempt(ViewAxis::Top, None, Some(0.07), 12.0)
+                },
+                attempt(ViewAxis::Front, Some(Failure::ObjectMissed), None, 0.0),
+            ]),
+        ];
+        let table = provenance_table(&episodes.iter().collect::<Vec<_>>());
+        for row in [
+            "| top | 4 | 0.50 (2/4) | 1 | 1 | 0 |",
+            "| front | 2 | 0.00 (0/2) | 0 | 1 | 1 |",
+            "| side | 0 | - | 0 | 0 | 0 |",
+            // A grasp counts under each of its repairs.
+            "| none (as decoded) | 4 | 0.25 (1/4) | 1 | 1 | 1 |",
+            "| refit | 0 | - | 0 | 0 | 0 |",
+            "| squared | 1 | 0.00 (0/1) | 0 | 1 | 0 |",
+            "| deepened | 2 | 0.50 (1/2) | 0 | 1 | 0 |",
+            "| 0-0.05 | 1 | 1.00 (1/1) | 0.00 (0/1) |",
+            "| 0.05-0.1 | 1 | 1.00 (1/1) | 0.00 (0/1) |",
+            "| 0.1-0.2 | 0 | - | - |",
+            "| 0.2-0.4 | 1 | 0.00 (0/1) | 1.00 (1/1) |",
+            "| >= 0.4 | 1 | 0.00 (0/1) | 1.00 (1/1) |",
+            // Lever bins count the four physics trials only.
+            "| 0-10 | 1 | 1.00 (1/1) | 0.00 (0/1) |",
+            "| 10-20 | 1 | 1.00 (1/1) | 0.00 (0/1) |",
+            "| 20-40 | 1 | 0.00 (0/1) | 1.00 (1/1) |",
+            "| >= 40 | 1 | 0.00 (0/1) | 1.00 (1/1) |",
+        ] {
+            assert!(table.contains(row), "{row}\n{table}");
+        }
+        // Without physics trials only the views; without attempts nothing.
+        let untried = [episode(vec![attempt(
+            ViewAxis::Side,
+            Some(Failure::ObjectMissed),
+            None,
+            0.0,
+        )])];
+        let views_only = provenance_table(&untried.iter().collect::<Vec<_>>());
+        assert!(
+            views_only.contains("| side | 1 | 0.00 (0/1) | 0 | 0 | 1 |"),
+            "{views_only}"
+        );
+        assert!(!views_only.contains("torque"), "{views_only}");
+        assert_eq!(provenance_table(&[&episode(Vec::new())]), "");
     }
 
     #[test]
@@ -1386,6 +1575,11 @@ mod eval {
             failure,
             collision: None,
             label: None,
+            view: ViewAxis::Top,
+            pixel: [36, 36],
+            repairs: Repairs::default(),
+            centroid_lever_m: 0.0,
+            torque_nm: None,
         };
         let tried = |failure, label, family| Attempt {
             label: Some((label, family)),
