@@ -327,6 +327,33 @@ pub struct Attempt {
     /// the closing line, from its true mass and centre of mass
     /// ([`weight_torque_nm`]), at the grasp as planned.
     pub torque_nm: Option<f32>,
+    /// For a grasp that matched an object: how far (degrees) the object
+    /// was tipped from the way the scene generator stands it upright (its
+    /// own `z` against the world's up; [`object_tilt_deg`]).
+    pub tilt_deg: Option<f32>,
+}
+
+/// The angle (degrees, 0-180) between `object`'s own `z` and the world's
+/// up: 0 as the scene generator stands it upright, about 90 toppled onto a
+/// side, 180 upside down.
+pub fn object_tilt_deg(object: &crate::scene::PlacedObject) -> f32 {
+    let up = object.world_from_object.rotation * parry3d::math::Vector::Z;
+    up.z.clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+/// Poses of an object by its tilt ([`object_tilt_deg`]), as [`provenance_table`] groups them.
+pub const POSES: [(&str, f32); 3] = [
+    ("upright", 30.0),
+    ("toppled", 150.0),
+    ("upside down", f32::INFINITY),
+];
+
+/// The name of the pose (of [`POSES`]) an object tipped `tilt_deg` from upright is in.
+pub fn pose_name(tilt_deg: f32) -> &'static str {
+    POSES
+        .iter()
+        .find(|(_, below)| tilt_deg < *below)
+        .map_or(POSES[POSES.len() - 1].0, |(name, _)| name)
 }
 
 /// The horizontal distance (m) from `point` to the closing line (grasp `x`
@@ -781,10 +808,12 @@ pub fn run_episode(
         };
         let mut label = None;
         let mut torque_nm = None;
+        let mut tilt_deg = None;
         let (failure, collision) = match scene.object_at(&grasp.object_centroid, 0.01) {
             None => (Some(Failure::ObjectMissed), None),
             Some(target) => {
                 let torque = weight_torque_nm(&scene.objects[target], &pose_of(&grasp.world_from_grasp));
+                tilt_deg = Some(object_tilt_deg(&scene.objects[target]));
                 let (tried, poses) = try_grasp(&scene, target, &grasp, config);
                 let (failure, collision) = match tried {
                     Tried::Collided(site) => (Some(Failure::CollisionOnApproach), Some(site)),
@@ -830,6 +859,7 @@ pub fn run_episode(
             repairs: grasp.repairs,
             centroid_lever_m: horizontal_lever_m(&grasp.world_from_grasp, &grasp.object_centroid),
             torque_nm,
+            tilt_deg,
         });
     }
     Ok(episode)
@@ -898,14 +928,16 @@ fn try_grasp(
 /// setting and seed, objects at the start, removed and fallen off, how it
 /// ended, and each attempt in order as `[outcome, quality, width_mm,
 /// down_deg, plan_ms, label, family, view, [u, v], centroid_lever_mm,
-/// torque_nm, repairs]`: "ok", a failure's name, or for a collision on
+/// torque_nm, repairs, tilt_deg]`: "ok", a failure's name, or for a collision on
 /// approach what was hit ([`CollisionSite::name`]); the approach's angle
 /// below the horizontal (90: straight down); for a physics trial the
 /// grasp's analytic label ([`GraspLabel::name`]) and its object's family,
 /// else null; the view the grasp came from and its peak pixel there; the
 /// lever the planner could see ([`Attempt::centroid_lever_m`]); for a
 /// physics trial the weight's torque about the closing line, else null; the
-/// names of the planner's repairs to it ([`Repairs::names`]).
+/// names of the planner's repairs to it ([`Repairs::names`]); for a grasp
+/// that matched an object, how far the object was tipped from upright
+/// ([`Attempt::tilt_deg`]), else null.
 pub fn episode_record(e: &Episode, setting: &str) -> serde_json::Value {
     let round = |v: f64, places: i32| (v * 10f64.powi(places)).round() / 10f64.powi(places);
     let attempts: Vec<serde_json::Value> = e
@@ -933,6 +965,7 @@ pub fn episode_record(e: &Episode, setting: &str) -> serde_json::Value {
                 round(a.centroid_lever_m * 1e3, 1),
                 a.torque_nm.map(|t| round(f64::from(t), 3)),
                 a.repairs.names(),
+                a.tilt_deg.map(|t| round(f64::from(t), 1)),
             ])
         })
         .collect();
@@ -1010,7 +1043,8 @@ pub const LEVER_BINS_MM: [f64; 4] = [10.0, 20.0, 40.0, f64::INFINITY];
 /// the physics trials by the torque of the object's weight about the
 /// closing line ([`TORQUE_BINS_NM`]) and by the lever the planner could see
 /// ([`LEVER_BINS_MM`]), with the share that held and that slipped during
-/// lift. Empty without attempts.
+/// lift, and by family and the pose the object lay in ([`POSES`]: the share
+/// that slipped). Empty without attempts.
 pub fn provenance_table(episodes: &[&Episode]) -> String {
     let attempts: Vec<&Attempt> = episodes.iter().flat_map(|e| &e.attempts).collect();
     if attempts.is_empty() {
@@ -1099,6 +1133,36 @@ pub fn provenance_table(episodes: &[&Episode]) -> String {
         &LEVER_BINS_MM,
         &|a| a.centroid_lever_m * 1e3,
     );
+    // Trials by family and by the pose the object lay in.
+    let mut families: Vec<Family> = trials.iter().filter_map(|a| a.label.map(|(_, f)| f)).collect();
+    families.sort_by_key(|f| Family::ALL.iter().position(|x| x == f));
+    families.dedup();
+    out.push_str(&format!(
+        "\nThe physics trials by family and the pose the object lay in (slipped during lift / trials; \
+         upright: tipped less than {} degrees from how the scene stood it, toppled: {0}-{} degrees, \
+         upside down: more):\n\n| family | {} |\n|---|{}\n",
+        POSES[0].1,
+        POSES[1].1,
+        POSES.map(|(name, _)| name).join(" | "),
+        "---:|".repeat(POSES.len())
+    ));
+    for family in families {
+        let cells: Vec<String> = POSES
+            .iter()
+            .map(|(pose, _)| {
+                let of: Vec<&Attempt> = trials
+                    .iter()
+                    .copied()
+                    .filter(|a| {
+                        a.label.is_some_and(|(_, f)| f == family)
+                            && a.tilt_deg.is_some_and(|t| pose_name(t) == *pose)
+                    })
+                    .collect();
+                share(failed(&of, Some(Failure::SlipDuringLift)), of.len())
+            })
+            .collect();
+        out.push_str(&format!("| {} | {} |\n", family.name(), cells.join(" | ")));
+    }
     out
 }
 

@@ -985,8 +985,8 @@ mod eval {
     use mvgrasp_sim::eval::{
         Attempt, CollisionSite, End, Episode, EpisodeConfig, Failure, GraspSource, InProcess, PlannedGrasp,
         Setting, Summary, collision_list, crease_setting, crease_text, episode_bootstrap, episode_record,
-        episode_scene, horizontal_lever_m, label_table, markdown_table, objects_outside_view,
-        provenance_table, run_episode, same_grasp,
+        episode_scene, horizontal_lever_m, label_table, markdown_table, object_tilt_deg,
+        objects_outside_view, pose_name, provenance_table, run_episode, same_grasp,
     };
     use mvgrasp_sim::grasp::{HandPart, Obstacle, pose_of, weight_torque_nm};
     use mvgrasp_sim::objects::Family;
@@ -1073,6 +1073,7 @@ mod eval {
                     },
                     centroid_lever_m: 0.01234,
                     torque_nm: Some(0.04567),
+                    tilt_deg: Some(91.26),
                 },
                 Attempt {
                     plan_ms: 9.0,
@@ -1091,6 +1092,7 @@ mod eval {
                     repairs: Repairs::default(),
                     centroid_lever_m: 0.0,
                     torque_nm: None,
+                    tilt_deg: None,
                 },
                 Attempt {
                     plan_ms: 8.0,
@@ -1105,6 +1107,7 @@ mod eval {
                     repairs: Repairs::default(),
                     centroid_lever_m: 0.05,
                     torque_nm: Some(0.3),
+                    tilt_deg: None,
                 },
             ],
             end: End::NoGraspAboveTau,
@@ -1139,7 +1142,8 @@ mod eval {
                 [36, 40],
                 12.3,
                 0.046,
-                ["squared", "deepened"]
+                ["squared", "deepened"],
+                91.3
             ])
         );
         // No physics trial: no label, family or torque.
@@ -1153,6 +1157,7 @@ mod eval {
             (&"front".into(), &serde_json::json!([10, 71]))
         );
         assert_eq!(a[1][11], serde_json::json!([]));
+        assert!(a[1][12].is_null(), "{}", a[1]);
         assert_eq!(
             a[1][0],
             format!(
@@ -1340,11 +1345,13 @@ mod eval {
                 .iter()
                 .all(|a| a.failure == Some(Failure::ObjectMissed))
         );
-        // Where each came from is kept; no trial ran, so no torque.
+        // Where each came from is kept; no object matched, so no trial,
+        // torque or tilt.
         assert!(
-            e.attempts
-                .iter()
-                .all(|a| a.view == ViewAxis::Front && a.pixel == [3, 4] && a.torque_nm.is_none()),
+            e.attempts.iter().all(|a| a.view == ViewAxis::Front
+                && a.pixel == [3, 4]
+                && a.torque_nm.is_none()
+                && a.tilt_deg.is_none()),
             "{:?}",
             e.attempts
         );
@@ -1403,6 +1410,7 @@ mod eval {
         let torque = |dx: f64| weight_torque_nm(&scene.objects[0], &pose_of(&over(dx).world_from_grasp));
         assert_eq!(e.attempts[0].torque_nm, Some(torque(0.0)));
         let second = e.attempts[1].torque_nm.expect("a trial ran");
+        assert_eq!(e.attempts[0].tilt_deg, Some(object_tilt_deg(&scene.objects[0])));
         assert!((second - torque(0.05)).abs() < 0.01, "{second} {}", torque(0.05));
         // The closing line (world x) runs through the centroid the planner
         // saw, so the lever it saw is zero.
@@ -1411,6 +1419,27 @@ mod eval {
             "{:?}",
             e.attempts
         );
+    }
+
+    #[test]
+    fn tilt_is_the_angle_of_the_objects_own_up_from_the_worlds() {
+        let config = EpisodeConfig::default();
+        let (scene, _) = episode_scene(Scenario::Isolated, 900_000, &config.catalog).unwrap();
+        let mut object = scene.objects[0].clone();
+        for (turn, tilt, pose) in [
+            (0.0, 0.0, "upright"),
+            (0.4, 22.918_31, "upright"),
+            (std::f32::consts::FRAC_PI_2, 90.0, "toppled"),
+            (2.7, 154.6986, "upside down"),
+            (std::f32::consts::PI, 180.0, "upside down"),
+        ] {
+            // Any turn about the world's up keeps the tilt.
+            object.world_from_object.rotation = parry3d::math::Rotation::from_rotation_z(1.0)
+                * parry3d::math::Rotation::from_rotation_x(turn);
+            let got = object_tilt_deg(&object);
+            assert!((got - tilt).abs() < 1e-3, "{turn}: {got}");
+            assert_eq!(pose_name(got), pose, "{turn}: {got}");
+        }
     }
 
     #[test]
@@ -1449,6 +1478,7 @@ mod eval {
             repairs: Repairs::default(),
             centroid_lever_m: lever_mm / 1e3,
             torque_nm,
+            tilt_deg: torque_nm.map(|_| 5.0),
         };
         let slip = Some(Failure::SlipDuringLift);
         let episode = |attempts| Episode {
@@ -1474,6 +1504,7 @@ mod eval {
                         deepened: true,
                         ..Repairs::default()
                     },
+                    tilt_deg: Some(90.0),
                     ..attempt(ViewAxis::Front, slip, Some(0.5), 45.0)
                 },
                 Attempt {
@@ -1506,6 +1537,9 @@ mod eval {
             "| 10-20 | 1 | 1.00 (1/1) | 0.00 (0/1) |",
             "| 20-40 | 1 | 0.00 (0/1) | 1.00 (1/1) |",
             "| >= 40 | 1 | 0.00 (0/1) | 1.00 (1/1) |",
+            // Slips by family and pose: three upright trials, one toppled.
+            "| family | upright | toppled | upside down |",
+            "| box | 0.33 (1/3) | 1.00 (1/1) | - |",
         ] {
             assert!(table.contains(row), "{row}\n{table}");
         }
@@ -1580,6 +1614,7 @@ mod eval {
             repairs: Repairs::default(),
             centroid_lever_m: 0.0,
             torque_nm: None,
+            tilt_deg: None,
         };
         let tried = |failure, label, family| Attempt {
             label: Some((label, family)),
