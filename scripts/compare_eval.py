@@ -10,7 +10,9 @@ how often the tried grasps held, by their analytic label (the table
 `eval.md` prints per family), and the share the labeller calls positive;
 then each episode's first attempt, whose frame is the same for every run
 on these seeds (a paired comparison; later frames depend on what earlier
-attempts did): how many the labeller calls positive and how many held.
+attempts did): how many the labeller calls positive and how many held;
+then, for runs since 2026-11-25 (whose attempts record the object's tilt),
+the slips during lift by family and by the pose the object lay in.
 The first run is the reference; the others show their difference to it.
 Standard library only.
 """
@@ -69,6 +71,32 @@ def first_attempts(run):
     return len(firsts), sum(a[5] == "positive" for a in firsts), sum(a[0] == "ok" for a in firsts)
 
 
+# Tilt from upright (degrees) under which an object counts as upright, then
+# as toppled; above, upside down. As `sim eval`'s `eval::POSES`.
+POSES = (("upright", 30.0), ("toppled", 150.0), ("upside down", float("inf")))
+# Index of the tilt in an attempt record (`eval::episode_record`).
+TILT = 12
+
+
+def pose_of(tilt_deg):
+    return next(name for name, below in POSES if tilt_deg < below)
+
+
+def slips_by_pose(run):
+    """{(family, pose): (slipped during lift, physics trials)} over the
+    attempts that reached the physics trial and record their object's tilt
+    (runs before 2026-11-25 record none: empty)."""
+    slipped, trials = Counter(), Counter()
+    for episode in run.get("episodes", []):
+        for attempt in episode["attempts"]:
+            if len(attempt) <= TILT or attempt[5] is None or attempt[TILT] is None:
+                continue
+            key = (attempt[6], pose_of(attempt[TILT]))
+            trials[key] += 1
+            slipped[key] += attempt[0] == "slip during lift"
+    return {key: (slipped[key], trials[key]) for key in trials}
+
+
 def per_attempt(c):
     return c["removed"] / c["attempts"] if c["attempts"] else float("nan")
 
@@ -105,6 +133,15 @@ def report(paths):
         if n:
             lines.append(f"  {name:24s} {n} episodes: labelled positive {positive} ({positive / n:.3f}), "
                          f"held {held} ({held / n:.3f})")
+    poses = [slips_by_pose(run) for run in runs]
+    keys = sorted({key for p in poses for key in p})
+    if keys:
+        lines.append("\nslips during lift by family and pose (slipped / physics trials; "
+                     "upright: tipped < 30 degrees, toppled: < 150, else upside down)")
+        for name, p in zip(names, poses):
+            cells = ", ".join(f"{family} {pose} {p[(family, pose)][0]}/{p[(family, pose)][1]}"
+                              for family, pose in keys if (family, pose) in p)
+            lines.append(f"  {name:24s} {cells if cells else '(no tilt recorded)'}")
     return "\n".join(lines)
 
 

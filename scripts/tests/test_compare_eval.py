@@ -76,6 +76,32 @@ class CompareEval(unittest.TestCase):
         self.assertIn("a                        1 episodes: labelled positive 1 (1.000), held 1 (1.000)", text)
         self.assertNotIn("b                        0 episodes", text)  # B has no episodes: no line
 
+    def test_slips_by_pose_count_trials_with_a_tilt_only(self):
+        tail = ["top", [36, 36], 5.0, 0.02, ["deepened"]]
+        c = run(800000, [summary("pile", "all:0.1", 1, 4, 5)],
+                [["slip during lift", 0.7, 90.0, 90.0, 3.0, "positive", "t_shape"] + tail + [91.0],
+                 ["ok", 0.7, 90.0, 90.0, 3.0, "positive", "t_shape"] + tail + [29.9],
+                 ["slip during lift", 0.7, 90.0, 90.0, 3.0, "not antipodal", "t_shape"] + tail + [30.0],
+                 ["ok", 0.7, 90.0, 90.0, 3.0, "positive", "mug"] + tail + [170.0],
+                 # matched an object, never reached the trial: not counted
+                 ["collision on approach: the table (palm), at the grasp", 0.6, 100.0, 90.0, 3.0, None, None]
+                 + tail[:3] + [None, [], 10.0]])
+        self.assertEqual(compare_eval.slips_by_pose(c), {("t_shape", "toppled"): (2, 2),
+                                                         ("t_shape", "upright"): (0, 1),
+                                                         ("mug", "upside down"): (0, 1)})
+        # Runs before the tilt was recorded: nothing, and no section.
+        self.assertEqual(compare_eval.slips_by_pose(A), {})
+        with tempfile.TemporaryDirectory() as tmp:
+            paths = []
+            for name, r in (("a", A), ("c", c)):
+                with open(os.path.join(tmp, name + ".json"), "w") as f:
+                    json.dump(r, f)
+                paths.append(os.path.join(tmp, name + ".json"))
+            text = compare_eval.report(paths)
+            self.assertNotIn("by family and pose", compare_eval.report(paths[:1]))
+        self.assertIn("a.json                   (no tilt recorded)", text)
+        self.assertIn("c.json                   mug upside down 0/1, t_shape toppled 2/2, t_shape upright 0/1", text)
+
     def test_different_seeds_are_flagged(self):
         other = dict(B, command=["sim", "eval", "--seed", "700000"])
         with tempfile.TemporaryDirectory() as tmp:
