@@ -84,6 +84,7 @@ def main(argv):
             for x, k, r in zip(xs, keys, rates):
                 s, n = table.get(k, (0, 0))
                 ax.text(x, r + 0.5, f"{s}/{n}", ha="center", va="bottom", fontsize=6, rotation=90)
+        ax.set_ylim(0, 1.18 * max(ax.get_ylim()[1], 1.0))
         ax.set_ylabel("slipped during lift (% of physics trials)")
         ax.grid(axis="y", alpha=0.3)
 
