@@ -2,7 +2,8 @@
 
     python3 -m mvgrasp_train.evaluate_onnx --data DATASET MODEL.onnx [MODEL.onnx ...] \
         [--hold-out-families bowl] [--scenarios isolated,packed] [--families mug] [--all-views | --training-views] \
-        [--misses MISSES.png [--misses-count 6]] [--smoothing-sigma-px 1.0] [--flips] [--object-threshold 0.1]
+        [--misses MISSES.png [--misses-count 6]] [--smoothing-sigma-px 1.0] [--flips] [--object-threshold 0.1] \
+        [--angle-limit-deg 30]
 
 Runs each model through onnxruntime (CPU) on the held-out instances of
 DATASET (the 80/20 split by instance of dataset.py) and prints the paper's
@@ -28,6 +29,12 @@ It also judges objects as the planner's `all` view policy acts on them
 when its quality clears `--object-threshold` (the planner's min_quality,
 0.1). A model can gain views and lose objects: a quality that rises on a
 view whose labels refuse every grasp beats the object's good view.
+
+`--angle-limit-deg` replaces the paper's 30-degree angle tolerance. At 7.5
+degrees the objects line ranked ten models the way one physics seed did
+better than at 30 (Spearman +0.61 against +0.18; models/MODEL_CARD.md,
+"Where the slips are"): the paper's tolerance passes grasps far enough
+off a box's faces to slip.
 """
 
 import argparse
@@ -83,8 +90,9 @@ def rounded(x):
     return "-" if x is None else f"{x:.2f}"
 
 
-def report(pred, ds, indices, object_threshold=0.1):
-    return metric.evaluate(pred, ds, indices, by=("scenario", "family"), object_threshold=object_threshold)
+def report(pred, ds, indices, object_threshold=0.1, angle_limit_deg=metric.ANGLE_LIMIT_DEG):
+    return metric.evaluate(pred, ds, indices, by=("scenario", "family"), object_threshold=object_threshold,
+                           angle_limit_deg=angle_limit_deg)
 
 
 def main(argv=None):
@@ -105,6 +113,8 @@ def main(argv=None):
                    help="blur the predicted quality before the argmax, as the planner does (its default: 1.0)")
     p.add_argument("--object-threshold", type=float, default=0.1,
                    help="the quality an object's best grasp must reach to be tried (the planner's min_quality)")
+    p.add_argument("--angle-limit-deg", type=float, default=metric.ANGLE_LIMIT_DEG,
+                   help="a prediction matches a positive within this angle (the paper's: 30)")
     p.add_argument("--flips", action="store_true",
                    help="average each view's maps with its three flips' (4 passes; the planner does one)")
     args = p.parse_args(argv)
@@ -125,7 +135,7 @@ def main(argv=None):
     results = {}
     for n, path in enumerate(args.models):
         pred = predict(path, ds.views[seen], sigma_px=args.smoothing_sigma_px, flips=args.flips)
-        results[path] = {"seen_families": report(pred, ds, seen, args.object_threshold)}
+        results[path] = {"seen_families": report(pred, ds, seen, args.object_threshold, args.angle_limit_deg)}
         if args.misses and n == 0:
             from . import plot
             picked = metric.misses(pred, ds, seen)[:args.misses_count]
@@ -134,7 +144,7 @@ def main(argv=None):
         if families:
             results[path]["unseen_families"] = report(
                 predict(path, ds.views[families], sigma_px=args.smoothing_sigma_px, flips=args.flips), ds, families,
-                args.object_threshold)
+                args.object_threshold, args.angle_limit_deg)
     print(json.dumps(results, indent=1))
     print(f"{'model':<40} {'seen':>7} {'top':>6} {'front':>6} {'side':>6} {'unseen':>7}", file=sys.stderr)
     for path, r in results.items():

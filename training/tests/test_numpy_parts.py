@@ -93,6 +93,11 @@ class Metric(unittest.TestCase):
         self.assertFalse(metric.grasp_correct((20, 20, 0.2 + np.deg2rad(31), 0.05), truth, pixel, pad))
         self.assertFalse(metric.grasp_correct((40, 20, 0.2, 0.05), truth, pixel, pad))
         self.assertFalse(metric.grasp_correct((20, 20, 0.2, 0.05), truth[:0], pixel, pad))
+        # A stricter angle tolerance: 10 degrees off passes at 30 and 12, not at 7.5.
+        off = (20, 20, 0.2 + np.deg2rad(10), 0.05)
+        self.assertTrue(metric.grasp_correct(off, truth, pixel, pad))
+        self.assertTrue(metric.grasp_correct(off, truth, pixel, pad, angle_limit_deg=12))
+        self.assertFalse(metric.grasp_correct(off, truth, pixel, pad, angle_limit_deg=7.5))
 
     def test_decode_reads_the_argmax_pixel(self):
         maps = np.zeros((2, 4, 8, 8), np.float32)
@@ -204,6 +209,13 @@ class Reader(unittest.TestCase):
             self.assertEqual(result["median_peak_without_positives"], 0.0)
             # No scene_seed in this meta: each view is its own scene.
             self.assertEqual(result["scenes"]["objects_with_positives"], 2)
+            # View 0's best grasp turned 10 degrees: right at the paper's 30, wrong at 7.5.
+            turned = np.array(ds.maps)
+            y, x = np.unravel_index(np.argmax(turned[0, 0]), turned[0, 0].shape)
+            phi = 0.5 * np.arctan2(turned[0, 2, y, x], turned[0, 1, y, x]) + np.deg2rad(10)
+            turned[0, 1:3, y, x] = [np.cos(2 * phi), np.sin(2 * phi)]
+            self.assertEqual(metric.evaluate(turned, ds, [0, 1, 2])["accuracy"], 1.0)
+            self.assertEqual(metric.evaluate(turned, ds, [0, 1, 2], angle_limit_deg=7.5)["accuracy"], 0.5)
             # Refusal counts that do not add up to the candidates are caught.
             ds.meta[0].update(candidates=5, refused={"object: pad": 3, "no pose": 1})
             self.assertEqual(dataset.check(ds), [])
