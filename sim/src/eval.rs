@@ -1017,9 +1017,9 @@ pub fn label_table(episodes: &[&Episode]) -> String {
         .map(|(l, _)| *l)
         .collect();
     for label in labels {
-        let cell = |family: Option<Family>| match counts.get(&(label, family)) {
-            Some(&(held, tried)) => format!("{:.2} ({held}/{tried})", held as f64 / tried as f64),
-            None => "-".to_owned(),
+        let cell = |family: Option<Family>| {
+            let (held, tried) = counts.get(&(label, family)).copied().unwrap_or((0, 0));
+            share(held, tried)
         };
         let per_family: Vec<String> = families.iter().map(|&f| cell(Some(f))).collect();
         out.push_str(&format!(
@@ -1029,6 +1029,15 @@ pub fn label_table(episodes: &[&Episode]) -> String {
         ));
     }
     out
+}
+
+/// `n` of `of` as a table cell: "0.75 (3/4)", or "-" when `of` is 0.
+fn share(n: usize, of: usize) -> String {
+    if of == 0 {
+        "-".to_owned()
+    } else {
+        format!("{:.2} ({n}/{of})", n as f64 / of as f64)
+    }
 }
 
 /// Upper edges (N m) of the torque bins of [`provenance_table`].
@@ -1050,13 +1059,6 @@ pub fn provenance_table(episodes: &[&Episode]) -> String {
     if attempts.is_empty() {
         return String::new();
     }
-    let share = |n: usize, of: usize| {
-        if of == 0 {
-            "-".to_owned()
-        } else {
-            format!("{:.2} ({n}/{of})", n as f64 / of as f64)
-        }
-    };
     let failed = |of: &[&Attempt], f: Option<Failure>| of.iter().filter(|a| a.failure == f).count();
     let row = |name: &str, of: &[&Attempt]| {
         let ok = failed(of, None);
