@@ -16,6 +16,10 @@ error of views without positives E times; `--peak-weight P` adds P times
 highest (0 without positives). `--rank-weight R` adds R times `rank_loss`: minus the log
 of the softmax share of the quality logits on positive pixels, per view
 with positives (the argmax of the quality map is the metric's grasp).
+`--teacher T.onnx` adds `--teacher-weight` times the MSE between the
+network's maps and T's on the same augmented batch (`Teacher`): with T a
+flip-wrapped file (flip_wrap.py) of the network it starts from, one pass
+learns what four flips averaged give (self-distillation).
 `--architecture skip` or `wide` may start from a `narrow` run (`start_from`).
 Augments each training view (augment.py), and after every epoch
 evaluates the paper's grasp accuracy on the held-out instances. On a GPU
@@ -133,6 +137,33 @@ def rank_loss(scores, target_quality):
     return torch.mean(everything - on_positives)
 
 
+class Teacher:
+    """An ONNX model run through onnxruntime (CPU) on each training batch;
+    its maps are a second target. Its contract must be the dataset's."""
+
+    KEYS = ("mvgrasp.input_size_px", "mvgrasp.pixel_size_m", "mvgrasp.width_scale_m", "mvgrasp.normalisation",
+            "mvgrasp.outputs")
+
+    def __init__(self, path, contract, threads=1):
+        import onnxruntime
+
+        from .export import contract_metadata
+
+        options = onnxruntime.SessionOptions()
+        options.intra_op_num_threads = max(threads, 1)
+        self.session = onnxruntime.InferenceSession(path, options, providers=["CPUExecutionProvider"])
+        meta = self.session.get_modelmeta().custom_metadata_map
+        want = {k: v for k, v in contract_metadata(contract, "", "").items() if k in self.KEYS}
+        wrong = {k: (meta.get(k), v) for k, v in want.items() if meta.get(k) != v}
+        if wrong:
+            raise SystemExit(f"--teacher {path}: contract differs from the data's (file, data): {wrong}")
+        self.version = meta.get("mvgrasp.model_version", "?")
+
+    def maps(self, views):
+        x = np.ascontiguousarray(views.detach().cpu().numpy(), dtype=np.float32)
+        return torch.from_numpy(self.session.run(["maps"], {"views": x})[0]).to(views.device)
+
+
 def start_from(model, saved, name):
     """Loads a saved run's weights into `model`: a run of the same
     architecture, or a `narrow` run into a `skip` network (its skip
@@ -175,6 +206,9 @@ def main(argv=None):
                    help="weight of rank_loss (the argmax on a positive pixel) added to the MSE (0: none)")
     p.add_argument("--rank-temperature", type=float, default=0.0,
                    help="rank_loss on the sigmoid qualities divided by this (0: on the quality logits, unbounded)")
+    p.add_argument("--teacher", metavar="T.onnx",
+                   help="also learn this ONNX model's maps on each augmented batch (e.g. a flip_wrap file)")
+    p.add_argument("--teacher-weight", type=float, default=1.0, help="weight of the MSE to --teacher's maps")
     p.add_argument("--device", default="cpu")
     p.add_argument("--augment", choices=("auto", "numpy", "torch"), default="auto",
                    help="numpy: per view on the CPU; torch: whole batches on --device, data held there (auto: torch off the CPU)")
@@ -217,6 +251,7 @@ def main(argv=None):
         start_from(model, saved, args.init)
         args.freeze_batchnorm = args.freeze_batchnorm or saved.get("frozen_batchnorm", False)
     model = model.to(device)
+    teacher = Teacher(args.teacher, ds.contract, args.threads) if args.teacher else None
     optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
     config = {k: v for k, v in vars(args).items()}
     config.update(train_views=len(train_idx), eval_views_total=len(eval_idx), unseen_family_views=len(family_idx), torch=torch.__version__,
@@ -262,6 +297,8 @@ def main(argv=None):
             loss = weighted_mse(squash(raw), y, args.positive_weight, args.balance_positives, args.empty_view_weight)
             if args.peak_weight:
                 loss = loss + args.peak_weight * peak_loss(torch.sigmoid(raw[:, 0]), y[:, 0])
+            if teacher is not None:
+                loss = loss + args.teacher_weight * torch.mean((squash(raw) - teacher.maps(x)) ** 2)
             if args.rank_weight:
                 scores = raw[:, 0] if not args.rank_temperature else torch.sigmoid(raw[:, 0]) / args.rank_temperature
                 loss = loss + args.rank_weight * rank_loss(scores, y[:, 0])

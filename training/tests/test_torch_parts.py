@@ -347,3 +347,22 @@ class Loss(unittest.TestCase):
         empty = rank_loss(torch.ones(1, 2, 2, requires_grad=True), torch.zeros(1, 2, 2))
         self.assertEqual(float(empty), 0.0)
         empty.backward()
+
+
+@unittest.skipIf(MISSING, REASON)
+class TeacherTarget(unittest.TestCase):
+    MODEL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "models", "mvgrasp.onnx")
+    CONTRACT = {"input_size_px": 72, "pixel_size_m": 0.0033333333, "width_scale_m": 0.2, "normalisation": "cube-v1"}
+
+    def test_the_teacher_gives_the_file_s_maps_and_refuses_another_contract(self):
+        import onnxruntime
+        import torch
+        from mvgrasp_train.train import Teacher
+        views = torch.from_numpy(np.random.default_rng(5).uniform(0, 1, (2, 1, 72, 72)).astype(np.float32))
+        teacher = Teacher(self.MODEL, self.CONTRACT)
+        want = onnxruntime.InferenceSession(self.MODEL).run(["maps"], {"views": views.numpy()})[0]
+        np.testing.assert_allclose(teacher.maps(views).numpy(), want, atol=1e-6)
+        for key, value in (("input_size_px", 96), ("pixel_size_m", 0.005), ("normalisation", "other")):
+            with self.assertRaises(SystemExit) as raised:
+                Teacher(self.MODEL, {**self.CONTRACT, key: value})
+            self.assertIn(f"mvgrasp.{key}", str(raised.exception))

@@ -1,0 +1,167 @@
+"""Wraps an exported grasp network so that one call averages four flips.
+
+    python3 -m mvgrasp_train.flip_wrap IN.onnx OUT.onnx
+
+The wrapped graph stacks each view with its left-right, up-down and double
+flip into one batch of 4B, runs the original network once on it, flips each
+part's maps back, negates sin 2phi for the two single flips (a mirror takes
+phi to -phi; the double flip is a half turn and keeps it) and averages the
+four. It is `evaluate_onnx.flip_average` inside the file, so the service,
+`sim eval` and `evaluate_onnx` use it with no option of their own: the same
+`views` -> `maps` interface and contract, at four times the network's work.
+The metadata gains `mvgrasp.test_time_flips` = 4 and the model version a
+`+flips` suffix. Only onnx is needed (no PyTorch); the output is checked
+against the four passes run separately (`check`).
+"""
+
+import argparse
+import json
+import sys
+
+import numpy as np
+import onnx
+from onnx import TensorProto, helper, numpy_helper
+
+FLIPS_KEY = "mvgrasp.test_time_flips"
+VERSION_KEY = "mvgrasp.model_version"
+OUTPUTS_KEY = "mvgrasp.outputs"  # the channel order, e.g. quality,cos2phi,sin2phi,width
+TOLERANCE = 1e-5
+_END = np.iinfo(np.int64).min  # a Slice end past the start of the axis, walking backwards
+
+
+def _prefixed(graph, prefix):
+    """The graph's nodes with every internal name prefixed, so that the
+    wrapper's own names never clash; the input and output keep theirs."""
+    keep = {graph.input[0].name, graph.output[0].name}
+
+    def rename(name):
+        return name if (not name or name in keep) else prefix + name
+
+    nodes = []
+    for node in graph.node:
+        copy = onnx.NodeProto()
+        copy.CopyFrom(node)
+        copy.name = prefix + node.name if node.name else ""
+        copy.input[:] = [rename(n) for n in node.input]
+        copy.output[:] = [rename(n) for n in node.output]
+        nodes.append(copy)
+    initializers = []
+    for tensor in graph.initializer:
+        copy = onnx.TensorProto()
+        copy.CopyFrom(tensor)
+        copy.name = rename(tensor.name)
+        initializers.append(copy)
+    return nodes, initializers
+
+
+def wrap(model):
+    """A new ModelProto: `model` run on a view and its three flips, maps
+    flipped back and averaged. `model` must map `[B, 1, L, L]` to
+    `[B, 4, L, L]` (one input, one output) and not be wrapped already."""
+    graph = model.graph
+    if len(graph.input) != 1 or len(graph.output) != 1:
+        raise ValueError("expected one input (views) and one output (maps)")
+    props = {p.key: p.value for p in model.metadata_props}
+    if FLIPS_KEY in props:
+        raise ValueError(f"already averages {props[FLIPS_KEY]} flips")
+    channels = [c.strip() for c in props.get(OUTPUTS_KEY, "").split(",")]
+    if len(channels) != 4 or "sin2phi" not in channels:
+        raise ValueError(f"{OUTPUTS_KEY} {props.get(OUTPUTS_KEY)!r} does not name four channels with sin2phi")
+    views, maps = graph.input[0].name, graph.output[0].name
+    nodes, initializers = _prefixed(graph, "net/")
+    inner_in, inner_out = "flip/stacked", "flip/net_maps"
+    for node in nodes:
+        node.input[:] = [inner_in if n == views else n for n in node.input]
+        node.output[:] = [inner_out if n == maps else n for n in node.output]
+
+    def const(name, values, dtype=np.int64):
+        initializers.append(numpy_helper.from_array(np.asarray(values, dtype=dtype), name))
+        return name
+
+    start, end, step = const("flip/start", [-1]), const("flip/end", [_END]), const("flip/step", [-1])
+    ax = {a: const(f"flip/axis{a}", [a]) for a in (2, 3, 4)}
+
+    def flip(x, axis, out):
+        return helper.make_node("Slice", [x, start, end, ax[axis], step], [out], name=out)
+
+    head = [
+        flip(views, 3, "flip/x"),                   # left-right (columns)
+        flip(views, 2, "flip/y"),                   # up-down (rows)
+        flip("flip/x", 2, "flip/xy"),               # both: a half turn
+        helper.make_node("Concat", [views, "flip/x", "flip/y", "flip/xy"], [inner_in], axis=0, name=inner_in),
+    ]
+    # [4B, 4, L, L] -> [4, B, 4, L, L]: part k holds every view under flip k.
+    size = [d.dim_value for d in graph.input[0].type.tensor_type.shape.dim[2:]]
+    if len(size) != 2 or min(size) <= 0:
+        raise ValueError("expected views of a fixed size [B, 1, L, L]")
+    shape = const("flip/parts_shape", [4, -1, 4] + size)
+    sign = np.ones((4, 1, 4, 1, 1), np.float32)
+    sign[1:3, 0, channels.index("sin2phi")] = -1.0
+    const("flip/sign", sign, np.float32)
+    split = const("flip/split", [1, 1, 1, 1])
+    tail = [
+        helper.make_node("Reshape", [inner_out, shape], ["flip/parts"], name="flip/parts"),
+        helper.make_node("Split", ["flip/parts", split], ["flip/p0", "flip/p1", "flip/p2", "flip/p3"], axis=0,
+                         name="flip/split"),
+        flip("flip/p1", 4, "flip/p1_back"),
+        flip("flip/p2", 3, "flip/p2_back"),
+        flip("flip/p3", 4, "flip/p3_x"),
+        flip("flip/p3_x", 3, "flip/p3_back"),
+        helper.make_node("Concat", ["flip/p0", "flip/p1_back", "flip/p2_back", "flip/p3_back"], ["flip/back"],
+                         axis=0, name="flip/back"),
+        helper.make_node("Mul", ["flip/back", "flip/sign"], ["flip/signed"], name="flip/signed"),
+        helper.make_node("ReduceMean", ["flip/signed"], [maps], axes=[0], keepdims=0, name="flip/mean"),
+    ]
+    new_graph = helper.make_graph(head + nodes + tail, graph.name + "+flips", list(graph.input),
+                                  list(graph.output), initializers)
+    out = helper.make_model(new_graph, opset_imports=list(model.opset_import), producer_name="mvgrasp_train",
+                            ir_version=model.ir_version)
+    props[FLIPS_KEY] = "4"
+    props[VERSION_KEY] = props.get(VERSION_KEY, "unversioned") + "+flips"
+    for key, value in props.items():
+        entry = out.metadata_props.add()
+        entry.key, entry.value = key, value
+    onnx.checker.check_model(out)
+    if out.graph.input[0].type.tensor_type.elem_type != TensorProto.FLOAT:
+        raise ValueError("expected float views")
+    return out
+
+
+def session(model_bytes):
+    import onnxruntime
+
+    options = onnxruntime.SessionOptions()
+    options.intra_op_num_threads = 1
+    return onnxruntime.InferenceSession(model_bytes, options, providers=["CPUExecutionProvider"])
+
+
+def check(base, wrapped, views):
+    """Largest |wrapped(views) - the four passes of base averaged| (numpy,
+    `evaluate_onnx.flip_average`)."""
+    from .evaluate_onnx import flip_average
+
+    plain, flipped = session(base.SerializeToString()), session(wrapped.SerializeToString())
+    expected = flip_average(lambda v: plain.run(["maps"], {"views": v})[0], views)
+    got = flipped.run(["maps"], {"views": views})[0]
+    return float(np.abs(got - expected).max())
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("model")
+    p.add_argument("out")
+    args = p.parse_args(argv)
+    base = onnx.load(args.model)
+    wrapped = wrap(base)
+    size = base.graph.input[0].type.tensor_type.shape.dim[2].dim_value
+    views = np.random.default_rng(0).uniform(0.0, 1.0, (5, 1, size, size)).astype(np.float32)
+    worst = check(base, wrapped, views)
+    onnx.save(wrapped, args.out)
+    print(json.dumps({"onnx": args.out, "max_abs_diff": worst, "tolerance": TOLERANCE,
+                      "model_version": {p.key: p.value for p in wrapped.metadata_props}[VERSION_KEY]}))
+    if worst > TOLERANCE:
+        sys.exit(f"the wrapped model differs from four passes by {worst} > {TOLERANCE}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,86 @@
+"""Tests that need onnx and onnxruntime but not PyTorch: the flip wrapper
+(`flip_wrap`) on the shipped model. They skip, saying why, without them."""
+
+import os
+import sys
+import unittest
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+try:
+    import onnx  # noqa: F401
+    import onnxruntime  # noqa: F401
+    MISSING = False
+except ImportError:
+    MISSING = True
+REASON = "needs onnx and onnxruntime (pip install onnx onnxruntime); scripts/test.sh installs them"
+
+MODEL = os.path.join(os.path.dirname(__file__), "..", "..", "models", "mvgrasp.onnx")
+
+
+@unittest.skipIf(MISSING, REASON)
+class FlipWrapTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        from mvgrasp_train import flip_wrap
+
+        cls.fw = flip_wrap
+        cls.base = onnx.load(MODEL)
+        cls.wrapped = flip_wrap.wrap(cls.base)
+        cls.views = np.random.default_rng(3).uniform(0.0, 1.0, (3, 1, 72, 72)).astype(np.float32)
+
+    def run_model(self, model, views):
+        return self.fw.session(model.SerializeToString()).run(["maps"], {"views": views})[0]
+
+    def test_equals_four_passes_averaged(self):
+        self.assertLessEqual(self.fw.check(self.base, self.wrapped, self.views), self.fw.TOLERANCE)
+
+    def test_differs_from_one_pass(self):
+        one, four = self.run_model(self.base, self.views), self.run_model(self.wrapped, self.views)
+        self.assertEqual(one.shape, four.shape)
+        self.assertGreater(float(np.abs(one - four).max()), 1e-3)
+
+    def test_batch_of_one_and_of_many_agree(self):
+        many = self.run_model(self.wrapped, self.views)
+        for i in range(len(self.views)):
+            one = self.run_model(self.wrapped, self.views[i:i + 1])
+            np.testing.assert_allclose(one[0], many[i], atol=1e-5)
+
+    def test_flip_equivariant(self):
+        maps = self.run_model(self.wrapped, self.views)
+        for axes, negate_sin in (((3,), True), ((2,), True), ((2, 3), False)):
+            got = self.run_model(self.wrapped, np.ascontiguousarray(np.flip(self.views, axes)))
+            want = np.flip(maps, axes).copy()
+            if negate_sin:
+                want[:, 2] *= -1.0
+            np.testing.assert_allclose(got, want, atol=1e-5, err_msg=f"flip of axes {axes}")
+
+    def test_the_sign_follows_the_outputs_named_and_check_catches_a_wrong_one(self):
+        lying = onnx.ModelProto()
+        lying.CopyFrom(self.base)
+        for entry in lying.metadata_props:
+            if entry.key == self.fw.OUTPUTS_KEY:
+                entry.value = "quality,sin2phi,cos2phi,width"  # not the file's order
+        wrong = self.fw.wrap(lying)
+        self.assertGreater(self.fw.check(self.base, wrong, self.views), self.fw.TOLERANCE)
+        for entry in lying.metadata_props:
+            if entry.key == self.fw.OUTPUTS_KEY:
+                entry.value = "quality,cos2phi,width"
+        with self.assertRaises(ValueError):
+            self.fw.wrap(lying)
+
+    def test_metadata_and_no_double_wrap(self):
+        props = {p.key: p.value for p in self.wrapped.metadata_props}
+        base = {p.key: p.value for p in self.base.metadata_props}
+        self.assertEqual(props[self.fw.FLIPS_KEY], "4")
+        self.assertEqual(props[self.fw.VERSION_KEY], base[self.fw.VERSION_KEY] + "+flips")
+        for key in ("mvgrasp.input_size_px", "mvgrasp.pixel_size_m", "mvgrasp.outputs", "mvgrasp.data_version"):
+            self.assertEqual(props[key], base[key])
+        with self.assertRaises(ValueError):
+            self.fw.wrap(self.wrapped)
+
+
+if __name__ == "__main__":
+    unittest.main()
