@@ -16,7 +16,10 @@
 //!   train / evaluation split), family, view axis, candidates, positives,
 //!   and `refused`: the other candidates counted by why the labeller
 //!   refused them (`targets::LabelledView::refused`; added 2026-11-25, so
-//!   older shards lack it).
+//!   older shards lack it). Views of mid-episode frames (`sim eval
+//!   --label-frames`, [`FrameLabeller`]) also carry `step`, the attempts
+//!   made in the episode before that frame, and their `instance` names the
+//!   frame (`seed.step:object`).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -38,6 +41,10 @@ use crate::targets::{LabelledView, TargetConfig, label_frame};
 
 /// Version of the files this writer produces.
 pub const FORMAT_VERSION: u32 = 2;
+
+/// The data version of labels made now (sim-6: `grasp.rs` as it is; older
+/// versions are in models/MODEL_CARD.md).
+pub const DATA_VERSION: &str = "sim-6";
 
 /// What to generate.
 #[derive(Debug, Clone)]
@@ -108,25 +115,33 @@ pub fn write_npy(path: &Path, shape: &[usize], data: &[f32]) -> Result<()> {
     std::fs::write(path, bytes).map_err(|e| file_error(path, e))
 }
 
-fn write_shard(dir: &Path, contract: &ModelContract, views: &[(u64, Scenario, LabelledView)]) -> Result<()> {
+/// One labelled view as a shard stores it: the scene seed and scenario it
+/// came from, and for a mid-episode frame the episode's step.
+pub struct ShardView {
+    /// Scene (episode) seed.
+    pub seed: u64,
+    /// Its scenario.
+    pub scenario: Scenario,
+    /// Attempts made before this frame (`None`: a `sim datagen` scene).
+    pub step: Option<usize>,
+    /// The view and its labels.
+    pub view: LabelledView,
+}
+
+fn write_shard(dir: &Path, contract: &ModelContract, views: &[ShardView]) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| file_error(dir, e))?;
     let l = contract.input_size_px;
     let n = views.len();
-    let images: Vec<f32> = views
-        .iter()
-        .flat_map(|(_, _, v)| v.image.iter().copied())
-        .collect();
-    let maps: Vec<f32> = views
-        .iter()
-        .flat_map(|(_, _, v)| v.maps.iter().copied())
-        .collect();
+    let images: Vec<f32> = views.iter().flat_map(|r| r.view.image.iter().copied()).collect();
+    let maps: Vec<f32> = views.iter().flat_map(|r| r.view.maps.iter().copied()).collect();
     write_npy(&dir.join("views.npy"), &[n, 1, l, l], &images)?;
     write_npy(&dir.join("maps.npy"), &[n, 4, l, l], &maps)?;
     let grasps: Vec<f32> = views
         .iter()
         .enumerate()
-        .flat_map(|(i, (_, _, v))| {
-            v.grasps
+        .flat_map(|(i, r)| {
+            r.view
+                .grasps
                 .iter()
                 .flat_map(move |g| [i as f32, g.u as f32, g.v as f32, g.phi, g.width_m, g.quality])
         })
@@ -134,13 +149,26 @@ fn write_shard(dir: &Path, contract: &ModelContract, views: &[(u64, Scenario, La
     write_npy(&dir.join("grasps.npy"), &[grasps.len() / 6, 6], &grasps)?;
     let path = dir.join("meta.jsonl");
     let mut meta = std::io::BufWriter::new(std::fs::File::create(&path).map_err(|e| file_error(&path, e))?);
-    for (seed, scenario, v) in views {
-        let line = serde_json::json!({
+    for ShardView {
+        seed,
+        scenario,
+        step,
+        view: v,
+    } in views
+    {
+        let instance = match step {
+            None => format!("{seed}:{}", v.object),
+            Some(step) => format!("{seed}.{step}:{}", v.object),
+        };
+        let mut line = serde_json::json!({
             "scene_seed": seed, "scenario": scenario.name(), "object": v.object,
-            "instance": format!("{seed}:{}", v.object), "family": v.family.name(),
+            "instance": instance, "family": v.family.name(),
             "view": v.axis.name(), "candidates": v.candidates, "positives": v.positives,
             "refused": v.refused,
         });
+        if let Some(step) = step {
+            line["step"] = serde_json::json!(step);
+        }
         writeln!(meta, "{line}").map_err(|e| file_error(&path, e))?;
     }
     meta.flush().map_err(|e| file_error(&path, e))
@@ -224,7 +252,12 @@ pub fn generate(
                 let seed = config.seed + k;
                 let scenario = config.scenarios[(k % config.scenarios.len() as u64) as usize];
                 match scene_views(seed, scenario, config, &planner, &gripper) {
-                    Ok(v) => views.extend(v.into_iter().map(|v| (seed, scenario, v))),
+                    Ok(v) => views.extend(v.into_iter().map(|view| ShardView {
+                        seed,
+                        scenario,
+                        step: None,
+                        view,
+                    })),
                     Err(e) => failed.push((seed, e.to_string())),
                 }
                 bar.inc(1);
@@ -236,7 +269,7 @@ pub fn generate(
                 .lock()
                 .map_err(|_| Error::Scene("a worker panicked".into()))?;
             r.views += views.len();
-            r.views_with_positives += views.iter().filter(|(_, _, v)| v.positives > 0).count();
+            r.views_with_positives += views.iter().filter(|r| r.view.positives > 0).count();
             r.failed.extend(failed);
             r.shards += usize::from(!views.is_empty());
             Ok(())
@@ -248,7 +281,7 @@ pub fn generate(
         .into_inner()
         .map_err(|_| Error::Scene("a worker panicked".into()))?;
     report.failed.sort();
-    write_manifest(out, contract, config, &gripper, &report)?;
+    write_manifest(out, contract, config, &gripper, &report, None)?;
     Ok(report)
 }
 
@@ -258,6 +291,7 @@ fn write_manifest(
     config: &DatagenConfig,
     gripper: &GripperModel,
     report: &DatagenReport,
+    frames_from: Option<serde_json::Value>,
 ) -> Result<()> {
     let mut shard_dirs: Vec<PathBuf> = std::fs::read_dir(out)
         .map_err(|e| file_error(out, e))?
@@ -269,7 +303,7 @@ fn write_manifest(
         })
         .collect();
     shard_dirs.sort();
-    let manifest = serde_json::json!({
+    let mut manifest = serde_json::json!({
         "format_version": FORMAT_VERSION,
         "data_version": config.data_version,
         "contract": {
@@ -297,7 +331,142 @@ fn write_manifest(
         "failed_scenes": report.failed.iter().map(|(seed, e)| serde_json::json!({"seed": seed, "error": e})).collect::<Vec<_>>(),
         "shards": shard_dirs.iter().filter_map(|p| p.file_name().and_then(|n| n.to_str()).map(str::to_owned)).collect::<Vec<_>>(),
     });
+    if let Some(frames_from) = frames_from {
+        manifest["frames_from"] = frames_from;
+    }
     let path = out.join("manifest.json");
     let text = serde_json::to_string_pretty(&manifest).map_err(|e| file_error(&path, e))?;
     std::fs::write(&path, text).map_err(|e| file_error(&path, e))
+}
+
+/// Labels the frames of `sim eval`'s episodes as `sim datagen` labels its
+/// scenes (`sim eval --label-frames`): each scene as the earlier attempts
+/// left it (pushed, dropped, one object fewer), the frame with the noise
+/// the planner saw. Every `every`-th frame of an episode is labelled; one
+/// shard per episode; the manifest says which model and setting made the
+/// episodes (`frames_from`). Labelling draws from its own generator, so
+/// the episodes are the same with it or without it.
+pub struct FrameLabeller {
+    out: PathBuf,
+    contract: ModelContract,
+    config: DatagenConfig,
+    gripper: GripperModel,
+    every: usize,
+    frames_from: serde_json::Value,
+    report: Mutex<DatagenReport>,
+}
+
+impl FrameLabeller {
+    /// A labeller writing into `out` (created) views for `contract`, with
+    /// `config`'s targets, noise note and data version (its `scenes`,
+    /// `seed`, `scenarios` and `catalog` describe the episodes).
+    pub fn new(
+        out: &Path,
+        contract: ModelContract,
+        config: DatagenConfig,
+        every: usize,
+        frames_from: serde_json::Value,
+    ) -> Result<Self> {
+        if every == 0 {
+            return Err(Error::Invalid {
+                field: "label every",
+                reason: "must be at least 1 (1: every frame)".into(),
+            });
+        }
+        config.targets.check()?;
+        std::fs::create_dir_all(out).map_err(|e| file_error(out, e))?;
+        Ok(Self {
+            out: out.to_path_buf(),
+            contract,
+            config,
+            gripper: GripperModel::robotiq_2f_140(),
+            every,
+            frames_from,
+            report: Mutex::new(DatagenReport::default()),
+        })
+    }
+
+    /// Whether the frame after `step` attempts is labelled.
+    pub fn wants(&self, step: usize) -> bool {
+        step.is_multiple_of(self.every)
+    }
+
+    /// The labelled views of one frame; a frame the labeller fails on is
+    /// counted in the manifest's `failed_scenes` and gives none.
+    pub fn label(
+        &self,
+        planner: &Planner,
+        (scenario, seed, step): (Scenario, u64, usize),
+        scene: &Scene,
+        frame: &Frame,
+    ) -> Vec<ShardView> {
+        let mut rng = SplitMix64::new(
+            seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (step as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03),
+        );
+        match label_frame(
+            scene,
+            frame,
+            planner,
+            &self.gripper,
+            &self.config.targets,
+            &mut rng,
+        ) {
+            Ok(views) => views
+                .into_iter()
+                .map(|view| ShardView {
+                    seed,
+                    scenario,
+                    step: Some(step),
+                    view,
+                })
+                .collect(),
+            Err(e) => {
+                if let Ok(mut r) = self.report.lock() {
+                    r.failed
+                        .push((seed, format!("{} step {step}: {e}", scenario.name())));
+                }
+                Vec::new()
+            }
+        }
+    }
+
+    /// Writes one episode's views as the shard `shard_SCENARIO_SEED`.
+    pub fn write_episode(&self, scenario: Scenario, seed: u64, views: &[ShardView]) -> Result<()> {
+        if views.is_empty() {
+            return Ok(());
+        }
+        write_shard(
+            &self.out.join(format!("shard_{}_{seed}", scenario.name())),
+            &self.contract,
+            views,
+        )?;
+        let mut r = self
+            .report
+            .lock()
+            .map_err(|_| Error::Scene("a worker panicked".into()))?;
+        r.views += views.len();
+        r.views_with_positives += views.iter().filter(|v| v.view.positives > 0).count();
+        r.shards += 1;
+        Ok(())
+    }
+
+    /// Writes the manifest once every episode is in; what was written.
+    pub fn finish(self) -> Result<DatagenReport> {
+        let mut report = self
+            .report
+            .into_inner()
+            .map_err(|_| Error::Scene("a worker panicked".into()))?;
+        report.failed.sort();
+        let mut from = self.frames_from;
+        from["every"] = serde_json::json!(self.every);
+        write_manifest(
+            &self.out,
+            &self.contract,
+            &self.config,
+            &self.gripper,
+            &report,
+            Some(from),
+        )?;
+        Ok(report)
+    }
 }

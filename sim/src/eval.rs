@@ -753,6 +753,20 @@ pub fn run_episode(
     source: &mut dyn GraspSource,
     config: &EpisodeConfig,
 ) -> Result<Episode> {
+    run_episode_with(scenario, seed, setting, source, config, &mut |_, _, _| {})
+}
+
+/// [`run_episode`], showing `on_frame` every frame before the planner gets
+/// it: the attempts made so far, the scene as they left it, and the frame
+/// (`sim eval --label-frames` labels them). It cannot change the episode.
+pub fn run_episode_with(
+    scenario: Scenario,
+    seed: u64,
+    setting: &Setting,
+    source: &mut dyn GraspSource,
+    config: &EpisodeConfig,
+    on_frame: &mut dyn FnMut(usize, &Scene, &Frame),
+) -> Result<Episode> {
     let (mut scene, camera) = episode_scene(scenario, seed, &config.catalog)?;
     let options = plan_options(setting, seed, &config.gripper);
     let mut noise_rng = episode_noise_rng(seed);
@@ -795,6 +809,7 @@ pub fn run_episode(
             &camera,
             config.noise.as_ref().map(|n| (n, &mut noise_rng)),
         );
+        on_frame(episode.attempts.len(), &scene, &frame);
         let started = Instant::now();
         let grasps = source.grasps(&frame, scene.workspace(), &options)?;
         let plan_ms = started.elapsed().as_secs_f64() * 1e3;

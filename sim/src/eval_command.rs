@@ -9,12 +9,15 @@ use indicatif::{ProgressBar, ProgressStyle};
 use mvgrasp_core::{GraspNet, ModelContract, Planner, PlannerConfig};
 use mvgrasp_server::settings::ModelSettings;
 use mvgrasp_sim::camera::render;
+use mvgrasp_sim::dataset::{DATA_VERSION, DatagenConfig, FrameLabeller};
 use mvgrasp_sim::eval::{
     Episode, EpisodeConfig, Failure, GraspSource, InProcess, Remote, Setting, Summary, collision_list,
     episode_record, episode_scene, label_table, markdown_table, provenance_table, run_episode,
+    run_episode_with,
 };
 use mvgrasp_sim::files::{DrawnGrasp, write_grasp_snapshot};
 use mvgrasp_sim::scene::Scenario;
+use mvgrasp_sim::targets::TargetConfig;
 use rayon::prelude::*;
 
 /// Where grasps come from.
@@ -86,6 +89,17 @@ pub struct EvalRun<'a> {
     pub min_success: Option<f64>,
     /// Episodes per scenario drawn into `out/snapshots`.
     pub snapshots: usize,
+    /// Label the first setting's frames into a dataset (`None`: don't).
+    pub label_frames: Option<LabelFrames>,
+}
+
+/// `--label-frames DIR --label-every N`: the first setting's episode frames,
+/// labelled as `sim datagen` labels its scenes, into a dataset at `out`.
+pub struct LabelFrames {
+    /// Dataset folder.
+    pub out: PathBuf,
+    /// Every how many frames of an episode (1: all; 0 is refused).
+    pub every: usize,
 }
 
 pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
@@ -99,6 +113,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         out,
         min_success,
         snapshots,
+        label_frames,
     } = run;
     anyhow::ensure!(!settings.is_empty(), "--settings: at least one");
     // The contract (and the model's name) from the model, or the server.
@@ -120,6 +135,33 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         }
     };
     let planner = Planner::new(planner_config.clone(), contract.clone())?;
+    let command: Vec<String> = std::env::args().collect();
+    let labeller = match label_frames {
+        None => None,
+        Some(LabelFrames { out: dir, every }) => Some(
+            FrameLabeller::new(
+                dir,
+                contract.clone(),
+                DatagenConfig {
+                    scenes: seeds.end - seeds.start,
+                    seed: seeds.start,
+                    scenarios: scenarios.clone(),
+                    catalog: config.catalog.clone(),
+                    scenes_per_shard: 1,
+                    targets: TargetConfig::default(),
+                    noise: config.noise,
+                    data_version: DATA_VERSION.to_owned(),
+                    label_salt: 0,
+                },
+                *every,
+                serde_json::json!({
+                    "model": model_name, "model_version": contract.model_version,
+                    "setting": settings[0].name(), "command": command,
+                }),
+            )
+            .with_context(|| format!("--label-frames {}", dir.display()))?,
+        ),
+    };
     let mut jobs: Vec<(Scenario, usize, u64)> = Vec::new();
     for &scenario in scenarios {
         for k in 0..settings.len() {
@@ -153,8 +195,35 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                     }
                     Worker::Remote(remote) => remote.as_mut(),
                 };
-                let episode = run_episode(scenario, seed, &settings[k], source, config)
-                    .with_context(|| format!("{} seed {seed} {}", scenario.name(), settings[k].name()))?;
+                let context = || format!("{} seed {seed} {}", scenario.name(), settings[k].name());
+                let episode = match &labeller {
+                    Some(labeller) if k == 0 => {
+                        let mut views = Vec::new();
+                        let episode = run_episode_with(
+                            scenario,
+                            seed,
+                            &settings[k],
+                            source,
+                            config,
+                            &mut |step, scene, frame| {
+                                if labeller.wants(step) {
+                                    views.extend(labeller.label(
+                                        &planner,
+                                        (scenario, seed, step),
+                                        scene,
+                                        frame,
+                                    ));
+                                }
+                            },
+                        )
+                        .with_context(context)?;
+                        labeller
+                            .write_episode(scenario, seed, &views)
+                            .with_context(context)?;
+                        episode
+                    }
+                    _ => run_episode(scenario, seed, &settings[k], source, config).with_context(context)?,
+                };
                 bar.inc(1);
                 Ok((k, episode))
             },
@@ -202,7 +271,6 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
             snapshot_files.push(name);
         }
     }
-    let command: Vec<String> = std::env::args().collect();
     let table = markdown_table(&summaries);
     let collisions = collision_list(&summaries);
     let labels = label_table(&episodes_in_order.iter().map(|(_, e)| e).collect::<Vec<_>>());
@@ -295,6 +363,18 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", out.display()))?;
     println!("{report}");
     println!("wrote {}/eval.md and eval.json", out.display());
+    if let (Some(labeller), Some(LabelFrames { out: dir, .. })) = (labeller, label_frames) {
+        let report = labeller.finish()?;
+        println!(
+            "labelled frames ({}): {} views, {} with positives, {} episodes; {} frames failed -> {}",
+            settings[0].name(),
+            report.views,
+            report.views_with_positives,
+            report.shards,
+            report.failed.len(),
+            dir.display()
+        );
+    }
     if let Some(floor) = *min_success {
         for s in summaries.iter().filter(|s| s.setting == settings[0].name()) {
             let rate = if s.attempts == 0 { 0.0 } else { s.success_rate() };

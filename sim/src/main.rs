@@ -20,7 +20,7 @@ use mvgrasp_sim::{
 use nalgebra::Vector3;
 
 mod eval_command;
-use eval_command::{EvalRun, Planning, eval_command};
+use eval_command::{EvalRun, LabelFrames, Planning, eval_command};
 
 /// Synthetic scenes and a simulated depth camera for mvgrasp.
 #[derive(Debug, Parser)]
@@ -101,7 +101,7 @@ enum Command {
         threads: Option<usize>,
         /// Data version recorded in the manifest (sim-6: the labels of
         /// `grasp.rs` as they are now; older versions are in MODEL_CARD.md).
-        #[arg(long, default_value = "sim-6")]
+        #[arg(long, default_value = mvgrasp_sim::dataset::DATA_VERSION)]
         data_version: String,
     },
     /// Clear-the-table in physics with the planner in the loop: success and
@@ -163,6 +163,15 @@ enum Command {
         /// to try others (`CreaseConfig`, `Reattach`).
         #[arg(long, default_value = "on")]
         crease_split: String,
+        /// Also label the first setting's episode frames (each scene as the
+        /// earlier attempts left it) as `sim datagen` labels its scenes, into
+        /// a dataset at this folder: models can then be judged on the
+        /// disturbed frames a run meets (`evaluate_onnx --min-step 1`).
+        #[arg(long)]
+        label_frames: Option<PathBuf>,
+        /// With --label-frames: label every N-th frame of an episode.
+        #[arg(long, default_value_t = 1, requires = "label_frames")]
+        label_every: usize,
     },
     /// Render one scene: depth.png + camera.json (what `mvgrasp plan` reads),
     /// labels.png and preview.png.
@@ -258,6 +267,8 @@ fn main() -> anyhow::Result<()> {
             server,
             opening_margin_mm,
             crease_split,
+            label_frames,
+            label_every,
         } => {
             use_threads(threads)?;
             let scenarios = scenarios_of(&scenarios)?;
@@ -294,6 +305,10 @@ fn main() -> anyhow::Result<()> {
                 out,
                 min_success,
                 snapshots,
+                label_frames: label_frames.map(|out| LabelFrames {
+                    out,
+                    every: label_every,
+                }),
             })?;
         }
         Command::PhysicsAgreement {

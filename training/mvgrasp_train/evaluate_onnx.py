@@ -3,7 +3,7 @@
     python3 -m mvgrasp_train.evaluate_onnx --data DATASET MODEL.onnx [MODEL.onnx ...] \
         [--hold-out-families bowl] [--scenarios isolated,packed] [--families mug] [--all-views | --training-views] \
         [--misses MISSES.png [--misses-count 6]] [--smoothing-sigma-px 1.0] [--flips] [--object-threshold 0.1] \
-        [--angle-limit-deg 30]
+        [--angle-limit-deg 30] [--min-step 1]
 
 Runs each model through onnxruntime (CPU) on the held-out instances of
 DATASET (the 80/20 split by instance of dataset.py) and prints the paper's
@@ -36,6 +36,10 @@ objects line on 8-angle labels ranked ten models more like one physics
 seed (Spearman +0.61 against +0.18); on 16-angle labels the limit changes
 nothing, as every angle is within 5.6 degrees of a labelled one
 (models/MODEL_CARD.md, "Where the slips are").
+
+On frames that `sim eval --label-frames` labelled, each view's `step` is the
+attempts made in its episode before it; `--min-step 1` keeps the frames
+that earlier attempts disturbed (views without a step count as step 0).
 """
 
 import argparse
@@ -86,6 +90,17 @@ def scored_views(meta, all_views=False, training_views=False):
     return trained if training_views else held
 
 
+def view_filter(meta, scenarios=(), families=(), min_step=0):
+    """Whether view i is kept: of one of `scenarios` and `families` (empty:
+    any), and of an episode frame after at least `min_step` attempts (views
+    without a `step`, `sim datagen`'s, count as step 0)."""
+    def wanted(i):
+        m = meta[i]
+        return ((not scenarios or m.get("scenario") in scenarios) and (not families or m["family"] in families)
+                and m.get("step", 0) >= min_step)
+    return wanted
+
+
 def rounded(x):
     """Two decimals, or "-" for a median of no views (None)."""
     return "-" if x is None else f"{x:.2f}"
@@ -116,18 +131,15 @@ def main(argv=None):
                    help="the quality an object's best grasp must reach to be tried (the planner's min_quality)")
     p.add_argument("--angle-limit-deg", type=float, default=metric.ANGLE_LIMIT_DEG,
                    help="a prediction matches a positive within this angle (the paper's: 30)")
+    p.add_argument("--min-step", type=int, default=0,
+                   help="only views of episode frames after this many attempts (sim eval --label-frames)")
     p.add_argument("--flips", action="store_true",
                    help="average each view's maps with its three flips' (4 passes; the planner does one)")
     args = p.parse_args(argv)
     ds = dataset.load(args.data, mmap=True)
     held = scored_views(ds.meta, args.all_views, args.training_views)
-    scenarios = {s for s in args.scenarios.split(",") if s}
-    only = {f for f in args.families.split(",") if f}
-
-    def wanted(i):
-        m = ds.meta[i]
-        return (not scenarios or m.get("scenario") in scenarios) and (not only or m["family"] in only)
-
+    wanted = view_filter(ds.meta, {s for s in args.scenarios.split(",") if s},
+                         {f for f in args.families.split(",") if f}, args.min_step)
     held = [i for i in held if wanted(i)]
     unseen = {f for f in args.hold_out_families.split(",") if f}
     # Every view of an unseen family counts, not only its held-out share: no model trained on them.

@@ -209,6 +209,16 @@ class Reader(unittest.TestCase):
             self.assertEqual(result["median_peak_without_positives"], 0.0)
             # No scene_seed in this meta: each view is its own scene.
             self.assertEqual(result["scenes"]["objects_with_positives"], 2)
+            # Views 0 and 2 of one scene are one scene; two frames of an episode
+            # (sim eval --label-frames: `step`) are two.
+            ds.meta[0]["scene_seed"] = ds.meta[2]["scene_seed"] = 7
+            self.assertEqual(metric.evaluate(ds.maps, ds, [0, 1, 2])["scenes"]["objects_with_positives"], 1)
+            ds.meta[0]["step"], ds.meta[2]["step"] = 0, 3
+            self.assertEqual(metric.evaluate(ds.maps, ds, [0, 1, 2])["scenes"]["objects_with_positives"], 2)
+            keep = evaluate_onnx.view_filter(ds.meta, min_step=1)
+            self.assertEqual([i for i in range(3) if keep(i)], [2])  # view 1 has no step: step 0
+            self.assertEqual([i for i in range(3) if evaluate_onnx.view_filter(ds.meta)(i)], [0, 1, 2])
+            del ds.meta[0]["step"], ds.meta[2]["step"], ds.meta[0]["scene_seed"], ds.meta[2]["scene_seed"]
             # View 0's best grasp turned 10 degrees: right at the paper's 30, wrong at 7.5.
             turned = np.array(ds.maps)
             y, x = np.unravel_index(np.argmax(turned[0, 0]), turned[0, 0].shape)

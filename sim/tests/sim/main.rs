@@ -1297,6 +1297,120 @@ mod eval {
         assert!(attempts > 0, "the baseline tried no grasp at all");
     }
 
+    /// `sim eval --label-frames`: every frame the planner gets is shown to
+    /// the hook in step order without changing the episode, and a
+    /// `FrameLabeller` writes them as a dataset whose views name their
+    /// frame.
+    #[test]
+    fn episode_frames_are_labelled_as_datagen_labels_scenes() {
+        use mvgrasp_sim::dataset::{DatagenConfig, FrameLabeller};
+        use mvgrasp_sim::eval::run_episode_with;
+
+        let mut net = MomentsNet::default();
+        let contract = net.contract().clone();
+        let planner = Planner::new(PlannerConfig::default(), contract.clone()).unwrap();
+        let config = EpisodeConfig::default();
+        let setting = Setting::parse("all:0.1").unwrap();
+        let (scenario, seed) = (Scenario::Pile, 900_000);
+        let out = std::env::temp_dir().join(format!("mvgrasp-frames-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        let datagen = DatagenConfig {
+            scenes: 1,
+            seed,
+            scenarios: vec![scenario],
+            catalog: config.catalog.clone(),
+            scenes_per_shard: 1,
+            targets: mvgrasp_sim::targets::TargetConfig::default(),
+            noise: config.noise,
+            data_version: "test".into(),
+            label_salt: 0,
+        };
+        assert!(
+            FrameLabeller::new(&out, contract.clone(), datagen.clone(), 0, serde_json::json!({})).is_err()
+        );
+        let labeller = FrameLabeller::new(
+            &out,
+            contract,
+            datagen,
+            2,
+            serde_json::json!({"setting": setting.name()}),
+        )
+        .unwrap();
+        let (mut steps, mut views, mut objects) = (Vec::new(), Vec::new(), Vec::new());
+        let labelled = {
+            let mut source = InProcess {
+                planner: &planner,
+                net: &mut net,
+            };
+            run_episode_with(
+                scenario,
+                seed,
+                &setting,
+                &mut source,
+                &config,
+                &mut |step, scene, frame| {
+                    steps.push(step);
+                    objects.push(scene.objects.len());
+                    if labeller.wants(step) {
+                        views.extend(labeller.label(&planner, (scenario, seed, step), scene, frame));
+                    }
+                },
+            )
+            .unwrap()
+        };
+        let plain = {
+            let mut source = InProcess {
+                planner: &planner,
+                net: &mut net,
+            };
+            run_episode(scenario, seed, &setting, &mut source, &config).unwrap()
+        };
+        let outcomes = |e: &Episode| {
+            let tried: Vec<_> = e
+                .attempts
+                .iter()
+                .map(|a| (a.quality, a.failure, a.pixel))
+                .collect();
+            (e.removed, e.fell_off, e.end, tried)
+        };
+        assert_eq!(outcomes(&labelled), outcomes(&plain));
+        assert!(
+            labelled.attempts.len() >= 3,
+            "{} attempts",
+            labelled.attempts.len()
+        );
+        // One frame before each attempt, and one more if the episode ended on
+        // a frame without a grasp to try.
+        let frames = labelled.attempts.len() + usize::from(labelled.end == End::NoGraspAboveTau);
+        assert_eq!(steps, (0..frames).collect::<Vec<_>>());
+        // Objects only leave: the frames after a removal show fewer.
+        assert!(objects.windows(2).all(|w| w[1] <= w[0]), "{objects:?}");
+        assert!(objects.last() < objects.first(), "{objects:?}");
+        // Every second frame labelled: steps 0, 2, ...
+        let mut labelled_steps: Vec<usize> = views.iter().filter_map(|v| v.step).collect();
+        labelled_steps.dedup();
+        assert_eq!(labelled_steps, (0..frames).step_by(2).collect::<Vec<_>>());
+        assert!(views.iter().any(|v| v.view.positives > 0));
+        labeller.write_episode(scenario, seed, &views).unwrap();
+        let report = labeller.finish().unwrap();
+        assert_eq!((report.views, report.shards), (views.len(), 1));
+        assert!(report.failed.is_empty(), "{:?}", report.failed);
+        let manifest: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+        assert_eq!(manifest["views"], views.len());
+        assert_eq!(manifest["frames_from"]["every"], 2);
+        assert_eq!(manifest["frames_from"]["setting"], "all:0.1");
+        assert_eq!(manifest["shards"][0], "shard_pile_900000");
+        let meta = super::meta_lines(&out.join("shard_pile_900000"));
+        assert_eq!(meta.len(), views.len());
+        for (line, v) in meta.iter().zip(&views) {
+            let step = v.step.unwrap();
+            assert_eq!(line["step"], step);
+            assert_eq!(line["instance"], format!("{seed}.{step}:{}", v.view.object));
+        }
+        let _ = std::fs::remove_dir_all(&out);
+    }
+
     /// Plans the same ranked list for every frame.
     struct Scripted(Vec<PlannedGrasp>);
 
