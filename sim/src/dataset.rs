@@ -19,7 +19,8 @@
 //!   older shards lack it). Views of mid-episode frames (`sim eval
 //!   --label-frames`, [`FrameLabeller`]) also carry `step`, the attempts
 //!   made in the episode before that frame, and their `instance` names the
-//!   frame (`seed.step:object`).
+//!   frame (`scenario-seed.step:object`: `sim eval` runs every scenario from
+//!   the same seeds).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -158,7 +159,8 @@ fn write_shard(dir: &Path, contract: &ModelContract, views: &[ShardView]) -> Res
     {
         let instance = match step {
             None => format!("{seed}:{}", v.object),
-            Some(step) => format!("{seed}.{step}:{}", v.object),
+            // `sim eval` runs every scenario from the same seeds.
+            Some(step) => format!("{}-{seed}.{step}:{}", scenario.name(), v.object),
         };
         let mut line = serde_json::json!({
             "scene_seed": seed, "scenario": scenario.name(), "object": v.object,

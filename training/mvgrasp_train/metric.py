@@ -205,8 +205,10 @@ def evaluate(pred_maps, ds, indices, threshold=0.5, by=(), object_threshold=0.1,
     ok, quality = hits(pred_maps, ds, indices, angle_limit_deg)
     per_axis, empty, alarms = {}, 0, 0
     instances = [ds.meta[i].get("instance", f"view {i}") for i in indices]
-    # A scene is a seed, or an episode's frame (`step`: sim eval --label-frames).
-    scenes = [(ds.meta[i].get("scene_seed", f"view {i}"), ds.meta[i].get("step")) for i in indices]
+    # A scene is a seed of a scenario, or an episode's frame (`step`: sim eval
+    # --label-frames, which runs every scenario from the same seeds).
+    scenes = [(ds.meta[i].get("scenario"), ds.meta[i].get("scene_seed", f"view {i}"), ds.meta[i].get("step"))
+              for i in indices]
     for k, i in enumerate(indices):
         if ok[k] is None:
             empty += 1

@@ -215,6 +215,12 @@ class Reader(unittest.TestCase):
             self.assertEqual(metric.evaluate(ds.maps, ds, [0, 1, 2])["scenes"]["objects_with_positives"], 1)
             ds.meta[0]["step"], ds.meta[2]["step"] = 0, 3
             self.assertEqual(metric.evaluate(ds.maps, ds, [0, 1, 2])["scenes"]["objects_with_positives"], 2)
+            # The same seed and step in two scenarios (sim eval runs each from the same seeds): two scenes.
+            ds.meta[2]["step"], ds.meta[0]["scenario"], ds.meta[2]["scenario"] = 0, "isolated", "pile"
+            self.assertEqual(metric.evaluate(ds.maps, ds, [0, 1, 2])["scenes"]["objects_with_positives"], 2)
+            ds.meta[2]["scenario"] = "isolated"
+            self.assertEqual(metric.evaluate(ds.maps, ds, [0, 1, 2])["scenes"]["objects_with_positives"], 1)
+            ds.meta[2]["step"] = 3
             keep = evaluate_onnx.view_filter(ds.meta, min_step=1)
             self.assertEqual([i for i in range(3) if keep(i)], [2])  # view 1 has no step: step 0
             self.assertEqual([i for i in range(3) if evaluate_onnx.view_filter(ds.meta)(i)], [0, 1, 2])

@@ -1406,7 +1406,7 @@ mod eval {
         for (line, v) in meta.iter().zip(&views) {
             let step = v.step.unwrap();
             assert_eq!(line["step"], step);
-            assert_eq!(line["instance"], format!("{seed}.{step}:{}", v.view.object));
+            assert_eq!(line["instance"], format!("pile-{seed}.{step}:{}", v.view.object));
         }
         let _ = std::fs::remove_dir_all(&out);
     }
