@@ -11,9 +11,9 @@ use mvgrasp_server::settings::ModelSettings;
 use mvgrasp_sim::camera::render;
 use mvgrasp_sim::dataset::{DATA_VERSION, DatagenConfig, FrameLabeller};
 use mvgrasp_sim::eval::{
-    Episode, EpisodeConfig, Failure, GraspSource, InProcess, Remote, Setting, Summary, collision_list,
-    episode_record, episode_scene, label_table, markdown_table, provenance_table, run_episode,
-    run_episode_with,
+    Episode, EpisodeConfig, Failure, GraspSource, InProcess, JudgeTally, Remote, Setting, Summary,
+    collision_list, episode_record, episode_scene, grasp_outcome, judge_table, label_table, markdown_table,
+    plan_options, provenance_table, run_episode, run_episode_with,
 };
 use mvgrasp_sim::files::{DrawnGrasp, write_grasp_snapshot};
 use mvgrasp_sim::scene::Scenario;
@@ -91,6 +91,9 @@ pub struct EvalRun<'a> {
     pub snapshots: usize,
     /// Label the first setting's frames into a dataset (`None`: don't).
     pub label_frames: Option<LabelFrames>,
+    /// Models whose best grasp is tried on every frame of the first
+    /// setting's episodes, from the same state (`--judge`; in process only).
+    pub judge: Vec<PathBuf>,
 }
 
 /// `--label-frames DIR --label-every N`: the first setting's episode frames,
@@ -114,6 +117,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         min_success,
         snapshots,
         label_frames,
+        judge,
     } = run;
     anyhow::ensure!(!settings.is_empty(), "--settings: at least one");
     // The contract (and the model's name) from the model, or the server.
@@ -135,6 +139,34 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         }
     };
     let planner = Planner::new(planner_config.clone(), contract.clone())?;
+    // Judged models: loaded like the planning model, and they must read the
+    // views the planner renders for it.
+    let judge_settings: Vec<ModelSettings> = match planning {
+        _ if judge.is_empty() => Vec::new(),
+        Planning::Server(_) => anyhow::bail!("--judge needs the in-process planner (not --server)"),
+        Planning::InProcess(model) => judge
+            .iter()
+            .map(|path| ModelSettings {
+                path: path.clone(),
+                ..(*model).clone()
+            })
+            .collect(),
+    };
+    // Each judged model plans with a planner of its own contract.
+    let mut judge_planners = Vec::new();
+    for settings in &judge_settings {
+        let theirs = load_net(settings)?.contract().clone();
+        anyhow::ensure!(
+            theirs.input_size_px == contract.input_size_px && theirs.pixel_size_m == contract.pixel_size_m,
+            "--judge {}: views of {} px x {} mm, the planner renders {} px x {} mm",
+            settings.path.display(),
+            theirs.input_size_px,
+            theirs.pixel_size_m * 1000.0,
+            contract.input_size_px,
+            contract.pixel_size_m * 1000.0
+        );
+        judge_planners.push(Planner::new(planner_config.clone(), theirs)?);
+    }
     let command: Vec<String> = std::env::args().collect();
     let labeller = match label_frames {
         None => None,
@@ -173,17 +205,25 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let started = std::time::Instant::now();
-    let results: Vec<anyhow::Result<(usize, Episode)>> = jobs
+    let results: Vec<anyhow::Result<(usize, Episode, Vec<JudgeTally>)>> = jobs
         .par_iter()
         .map_init(
-            || match planning {
-                Planning::InProcess(model) => load_net(model).map(Worker::Net),
-                Planning::Server(endpoint) => Remote::connect(endpoint)
-                    .map(|r| Worker::Remote(Box::new(r)))
-                    .map_err(anyhow::Error::from),
+            || -> anyhow::Result<(Worker, Vec<Box<dyn GraspNet + Send>>)> {
+                let worker = match planning {
+                    Planning::InProcess(model) => Worker::Net(load_net(model)?),
+                    Planning::Server(endpoint) => Worker::Remote(Box::new(Remote::connect(endpoint)?)),
+                };
+                let judges = judge_settings
+                    .iter()
+                    .map(load_net)
+                    .collect::<anyhow::Result<Vec<_>>>()?;
+                Ok((worker, judges))
             },
-            |worker, &(scenario, k, seed)| {
-                let worker = worker.as_mut().map_err(|e| anyhow::anyhow!("{e:#}"))?;
+            |state, &(scenario, k, seed)| {
+                let (worker, judges) = match state {
+                    Ok((worker, judges)) => (worker, judges),
+                    Err(e) => anyhow::bail!("{e:#}"),
+                };
                 let mut in_process;
                 let source: &mut dyn GraspSource = match worker {
                     Worker::Net(net) => {
@@ -196,41 +236,91 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                     Worker::Remote(remote) => remote.as_mut(),
                 };
                 let context = || format!("{} seed {seed} {}", scenario.name(), settings[k].name());
-                let episode = match &labeller {
-                    Some(labeller) if k == 0 => {
-                        let mut views = Vec::new();
-                        let episode = run_episode_with(
-                            scenario,
-                            seed,
-                            &settings[k],
-                            source,
-                            config,
-                            &mut |step, scene, frame| {
-                                if labeller.wants(step) {
-                                    views.extend(labeller.label(
-                                        &planner,
-                                        (scenario, seed, step),
-                                        scene,
-                                        frame,
-                                    ));
-                                }
-                            },
-                        )
+                let mut tallies = vec![JudgeTally::default(); judges.len()];
+                if k != 0 || (labeller.is_none() && judges.is_empty()) {
+                    let episode =
+                        run_episode(scenario, seed, &settings[k], source, config).with_context(context)?;
+                    bar.inc(1);
+                    return Ok((k, episode, tallies));
+                }
+                let options = plan_options(&settings[k], seed, &config.gripper);
+                let mut views = Vec::new();
+                // Where the objects stood at the last judged frame: a frame
+                // after an attempt that never reached physics shows the same
+                // state, and is judged once.
+                let mut last_judged: Option<Vec<[f32; 3]>> = None;
+                let episode = run_episode_with(
+                    scenario,
+                    seed,
+                    &settings[k],
+                    source,
+                    config,
+                    &mut |step, scene, frame| {
+                        if let Some(labeller) = &labeller
+                            && labeller.wants(step)
+                        {
+                            views.extend(labeller.label(&planner, (scenario, seed, step), scene, frame));
+                        }
+                        // Each judged model's best grasp on this very frame, tried
+                        // from this state and then forgotten.
+                        let state: Vec<[f32; 3]> = scene
+                            .objects
+                            .iter()
+                            .map(|o| o.world_from_object.translation.into())
+                            .collect();
+                        if judges.is_empty() || last_judged.as_ref() == Some(&state) {
+                            return;
+                        }
+                        last_judged = Some(state);
+                        for ((net, tally), planner) in
+                            judges.iter_mut().zip(tallies.iter_mut()).zip(&judge_planners)
+                        {
+                            let mut judged = InProcess {
+                                planner,
+                                net: net.as_mut(),
+                            };
+                            let planned = judged.grasps(frame, scene.workspace(), &options).ok();
+                            tally.add(planned.map(|g| g.first().map(|g| grasp_outcome(scene, g, config))));
+                        }
+                    },
+                )
+                .with_context(context)?;
+                if let Some(labeller) = &labeller {
+                    labeller
+                        .write_episode(scenario, seed, &views)
                         .with_context(context)?;
-                        labeller
-                            .write_episode(scenario, seed, &views)
-                            .with_context(context)?;
-                        episode
-                    }
-                    _ => run_episode(scenario, seed, &settings[k], source, config).with_context(context)?,
-                };
+                }
                 bar.inc(1);
-                Ok((k, episode))
+                Ok((k, episode, tallies))
             },
         )
         .collect();
     bar.finish_and_clear();
     let results = results.into_iter().collect::<anyhow::Result<Vec<_>>>()?;
+    // The judged models' tallies per scenario, then over all of them.
+    let mut judged_rows: Vec<(String, String, JudgeTally)> = Vec::new();
+    for (j, path) in judge.iter().enumerate() {
+        let mut all = JudgeTally::default();
+        for &scenario in scenarios {
+            let mut tally = JudgeTally::default();
+            for (_, _, tallies) in results
+                .iter()
+                .filter(|(k, e, _)| *k == 0 && e.scenario == scenario)
+            {
+                tally.merge(&tallies[j]);
+            }
+            all.merge(&tally);
+            judged_rows.push((scenario.name().to_owned(), path.display().to_string(), tally));
+        }
+        judged_rows.push(("all".to_owned(), path.display().to_string(), all));
+    }
+    judged_rows.sort_by_key(|(scenario, _, _)| {
+        scenarios
+            .iter()
+            .position(|s| s.name() == scenario)
+            .unwrap_or(scenarios.len())
+    });
+    let results: Vec<(usize, Episode)> = results.into_iter().map(|(k, e, _)| (k, e)).collect();
     // For eval.json: scenario, setting, seed order.
     let mut episodes_in_order: Vec<&(usize, Episode)> = results.iter().collect();
     episodes_in_order.sort_by_key(|(k, e)| (scenarios.iter().position(|s| *s == e.scenario), *k, e.seed));
@@ -295,6 +385,18 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
             }
         })
         .collect();
+    let judged = judge_table(&judged_rows);
+    let provenance = if judged.is_empty() {
+        provenance
+    } else {
+        format!(
+            "{provenance}\n### Other models' best grasps on the same frames ({}, `--judge`)\n\n\
+             Every frame of the first setting's episodes, before this run's own attempt: each judged \
+             model plans on the frame, and its best grasp is tried in physics from that state, which \
+             is then restored. Paired: every model sees the same frames.\n\n{judged}",
+            settings[0].name()
+        )
+    };
     let objects_line = format!(" Objects drawn from: {}.", config.catalog.names().join(", "));
     let report = format!(
         "# Clear-the-table in simulation\n\n- revision: `{}`\n- model: `{}` ({}, data {}), {} px views of {} mm\n- command: `{}`\n- seeds {}..{} per scenario, the same scenes and cameras for every setting; {:.0} s on {} threads\n\n{table}\n\
@@ -356,6 +458,11 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
             "ended_without_grasp": s.ended_without_grasp, "cleared": s.cleared,
             "plan_ms_p50": s.plan_ms[0], "plan_ms_p90": s.plan_ms[1],
             "success_ci95": s.success_ci95, "removal_ci95": s.removal_ci95,
+        })).collect::<Vec<_>>(),
+        "judged": judged_rows.iter().map(|(scenario, model, t)| serde_json::json!({
+            "scenario": scenario, "model": model, "frames": t.frames, "no_grasp": t.no_grasp,
+            "planning_errors": t.errors, "tried": t.tried(), "held": t.held,
+            "failures": Failure::ALL.iter().zip(t.failures).map(|(f, n)| (f.name(), n)).collect::<std::collections::BTreeMap<_, _>>(),
         })).collect::<Vec<_>>(),
         "episodes": episodes_in_order.iter().map(|(k, e)| episode_record(e, &settings[*k].name())).collect::<Vec<_>>(),
     });

@@ -172,6 +172,12 @@ enum Command {
         /// With --label-frames: label every N-th frame of an episode.
         #[arg(long, default_value_t = 1, requires = "label_frames")]
         label_every: usize,
+        /// Models (comma-separated ONNX files) whose best grasp is also tried
+        /// on every frame of the first setting's episodes, from the same
+        /// state, which is then restored: paired physics for models on the
+        /// same frames (in-process planning only).
+        #[arg(long, value_delimiter = ',', conflicts_with = "server")]
+        judge: Vec<PathBuf>,
     },
     /// Render one scene: depth.png + camera.json (what `mvgrasp plan` reads),
     /// labels.png and preview.png.
@@ -269,6 +275,7 @@ fn main() -> anyhow::Result<()> {
             crease_split,
             label_frames,
             label_every,
+            judge,
         } => {
             use_threads(threads)?;
             let scenarios = scenarios_of(&scenarios)?;
@@ -309,6 +316,7 @@ fn main() -> anyhow::Result<()> {
                     out,
                     every: label_every,
                 }),
+                judge,
             })?;
         }
         Command::PhysicsAgreement {

@@ -1411,6 +1411,90 @@ mod eval {
         let _ = std::fs::remove_dir_all(&out);
     }
 
+    /// `sim eval --judge`: a grasp tried from a frame's state by
+    /// `grasp_outcome` ends as the episode's own attempt on that frame did,
+    /// and leaves the scene as it was; the tallies count and table it.
+    #[test]
+    fn a_judged_grasp_ends_as_the_episode_s_attempt_did() {
+        use mvgrasp_sim::eval::{JudgeTally, grasp_outcome, judge_table, plan_options, run_episode_with};
+
+        let mut net = MomentsNet::default();
+        let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).unwrap();
+        let config = EpisodeConfig::default();
+        let setting = Setting::parse("all:0.1").unwrap();
+        let (mut compared, mut failures) = (0, 0);
+        for (scenario, seed) in [(Scenario::Packed, 900_001), (Scenario::Packed, 900_002)] {
+            let options = plan_options(&setting, seed, &config.gripper);
+            let mut judged = Vec::new();
+            let mut twin = MomentsNet::default();
+            let episode = {
+                let mut source = InProcess {
+                    planner: &planner,
+                    net: &mut net,
+                };
+                run_episode_with(
+                    scenario,
+                    seed,
+                    &setting,
+                    &mut source,
+                    &config,
+                    &mut |_, scene, frame| {
+                        let before: Vec<_> = scene.objects.iter().map(|o| o.world_from_object).collect();
+                        let mut judge = InProcess {
+                            planner: &planner,
+                            net: &mut twin,
+                        };
+                        let best = judge.grasps(frame, scene.workspace(), &options).unwrap();
+                        judged.push(
+                            best.first()
+                                .map(|g| (g.world_from_grasp, grasp_outcome(scene, g, &config))),
+                        );
+                        let after: Vec<_> = scene.objects.iter().map(|o| o.world_from_object).collect();
+                        assert_eq!(before, after, "judging moved the scene");
+                    },
+                )
+                .unwrap()
+            };
+            // Where the episode tried the judge's grasp (no earlier failure
+            // made it take another), both end the same way.
+            for (attempt, judged) in episode.attempts.iter().zip(&judged) {
+                let Some((pose, outcome)) = judged else { continue };
+                if same_grasp(pose, &attempt.world_from_grasp) {
+                    assert_eq!(*outcome, attempt.failure, "{} {seed}", scenario.name());
+                    compared += 1;
+                    failures += usize::from(outcome.is_some());
+                }
+            }
+        }
+        assert!(
+            compared >= 4 && failures >= 2,
+            "{compared} compared, {failures} failed"
+        );
+
+        let mut tally = JudgeTally::default();
+        tally.add(Some(Some(None)));
+        tally.add(Some(Some(Some(Failure::SlipDuringLift))));
+        tally.add(Some(None));
+        tally.add(None);
+        assert_eq!(
+            (
+                tally.frames,
+                tally.tried(),
+                tally.held,
+                tally.no_grasp,
+                tally.errors
+            ),
+            (4, 2, 1, 1, 1)
+        );
+        let mut all = JudgeTally::default();
+        all.merge(&tally);
+        all.merge(&tally);
+        assert_eq!((all.frames, all.held, all.failures[1]), (8, 2, 2));
+        let table = judge_table(&[("pile".into(), "m.onnx".into(), tally)]);
+        assert!(table.contains("| pile | m.onnx | 4 (1 planning errors) | 1 | 2 | 1 | 0.25 (1/4) | 0.50 (1/2) | slip during lift 1 |"), "{table}");
+        assert!(judge_table(&[]).is_empty());
+    }
+
     /// Plans the same ranked list for every frame.
     struct Scripted(Vec<PlannedGrasp>);
 
