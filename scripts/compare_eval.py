@@ -12,12 +12,16 @@ then each episode's first attempt, whose frame is the same for every run
 on these seeds (a paired comparison; later frames depend on what earlier
 attempts did): how many the labeller calls positive and how many held;
 then, for runs since 2026-11-25 (whose attempts record the object's tilt),
-the slips during lift by family and by the pose the object lay in.
+the slips during lift by family and by the pose the object lay in; and
+for runs made with `--judge`, the judged models on the same states: each
+one's held grasps, and against the first judged model the states only it
+held and only the first held, with a two-sided sign test on those.
 The first run is the reference; the others show their difference to it.
 Standard library only.
 """
 
 import json
+import math
 import os
 import sys
 from collections import Counter
@@ -97,13 +101,42 @@ def slips_by_pose(run):
     return {key: (slipped[key], trials[key]) for key in trials}
 
 
+def sign_test(a, b):
+    """Two-sided exact sign test: the chance of a split at least as uneven
+    as a : b of a + b discordant pairs if either side were as likely."""
+    n = a + b
+    if n == 0:
+        return 1.0
+    tail = sum(math.comb(n, k) for k in range(0, min(a, b) + 1)) / 2.0 ** n
+    return min(1.0, 2.0 * tail)
+
+
+def judged_pairs(run):
+    """For a run with `--judge`: per judged model (its name, held, states
+    judged, states only it held, states only the first model held, and the
+    sign test's p on those two), over every judged state."""
+    models = run.get("judged_models", [])
+    frames = run.get("judged_frames", [])
+    if not models or not frames:
+        return []
+    held = [[f["outcomes"][m] == "held" for f in frames] for m in range(len(models))]
+    rows = []
+    for m, name in enumerate(models):
+        only_it = sum(x and not y for x, y in zip(held[m], held[0]))
+        only_first = sum(y and not x for x, y in zip(held[m], held[0]))
+        rows.append((name, sum(held[m]), len(frames), only_it, only_first, sign_test(only_it, only_first)))
+    return rows
+
+
 def per_attempt(c):
     return c["removed"] / c["attempts"] if c["attempts"] else float("nan")
 
 
 def report(paths):
-    runs = [load(p) for p in paths]
-    names = [os.path.basename(os.path.normpath(p)) for p in paths]
+    return report_runs([load(p) for p in paths], [os.path.basename(os.path.normpath(p)) for p in paths])
+
+
+def report_runs(runs, names):
     tables = [totals(r) for r in runs]
     seeds = {r["command"][r["command"].index("--seed") + 1] if "--seed" in r["command"] else "?" for r in runs}
     lines = [f"seeds: {', '.join(sorted(seeds))}" + ("  (runs on different seeds: not comparable)" if len(seeds) > 1 else "")]
@@ -142,6 +175,14 @@ def report(paths):
             cells = ", ".join(f"{family} {pose} {p[(family, pose)][0]}/{p[(family, pose)][1]}"
                               for family, pose in keys if (family, pose) in p)
             lines.append(f"  {name:24s} {cells if cells else '(no tilt recorded)'}")
+    for name, run in zip(names, runs):
+        rows = judged_pairs(run)
+        if rows:
+            lines.append(f"\n{name}: judged models on the same states (held; against the first: "
+                         "states only it held / only the first held, sign test)")
+            for model, held, n, only_it, only_first, p in rows:
+                versus = "" if model == rows[0][0] else f"  {only_it} / {only_first}, p = {p:.3g}"
+                lines.append(f"  {model:36s} held {held}/{n} ({held / n:.3f}){versus}")
     return "\n".join(lines)
 
 

@@ -112,5 +112,27 @@ class CompareEval(unittest.TestCase):
         self.assertIn("not comparable", text)
 
 
+class Judged(unittest.TestCase):
+    RUN = {"command": ["sim", "eval", "--seed", "1"], "summaries": [], "episodes": [],
+           "judged_models": ["a.onnx", "b.onnx"],
+           "judged_frames": [{"scenario": "pile", "seed": 1, "step": s, "outcomes": o} for s, o in enumerate([
+               ["held", "held"], ["held", "slip during lift"], ["held", "no grasp"], ["held", "held"],
+               ["collision on approach", "held"]])]}
+
+    def test_pairs_count_each_state_against_the_first_model(self):
+        rows = compare_eval.judged_pairs(self.RUN)
+        self.assertEqual([r[:5] for r in rows], [("a.onnx", 4, 5, 0, 0), ("b.onnx", 3, 5, 1, 2)])
+        self.assertEqual(rows[0][5], 1.0)
+        self.assertIn("b.onnx", compare_eval.report_runs([self.RUN], ["r"]))
+        self.assertEqual(compare_eval.judged_pairs({"summaries": []}), [])
+
+    def test_the_sign_test_is_exact_and_two_sided(self):
+        self.assertEqual(compare_eval.sign_test(0, 0), 1.0)
+        self.assertAlmostEqual(compare_eval.sign_test(1, 2), 1.0)
+        self.assertAlmostEqual(compare_eval.sign_test(0, 5), 2 / 32)
+        self.assertAlmostEqual(compare_eval.sign_test(8, 2), 2 * 56 / 1024)
+        self.assertEqual(compare_eval.sign_test(8, 2), compare_eval.sign_test(2, 8))
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -929,6 +929,17 @@ impl JudgeTally {
         }
     }
 
+    /// The name of one judged frame's outcome, as [`Self::add`] takes it:
+    /// "planning error", "no grasp", "held" or the failure's name.
+    pub fn outcome_name(frame: Option<Option<Option<Failure>>>) -> &'static str {
+        match frame {
+            None => "planning error",
+            Some(None) => "no grasp",
+            Some(Some(None)) => "held",
+            Some(Some(Some(f))) => f.name(),
+        }
+    }
+
     /// Adds another tally's counts.
     pub fn merge(&mut self, other: &JudgeTally) {
         self.frames += other.frames;

@@ -205,7 +205,10 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let started = std::time::Instant::now();
-    let results: Vec<anyhow::Result<(usize, Episode, Vec<JudgeTally>)>> = jobs
+    // Per episode: its setting, the episode, the judged models' tallies and
+    // each judged frame's outcomes (step, one name per model).
+    type Judged = (Vec<JudgeTally>, Vec<(usize, Vec<&'static str>)>);
+    let results: Vec<anyhow::Result<(usize, Episode, Judged)>> = jobs
         .par_iter()
         .map_init(
             || -> anyhow::Result<(Worker, Vec<Box<dyn GraspNet + Send>>)> {
@@ -237,11 +240,12 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                 };
                 let context = || format!("{} seed {seed} {}", scenario.name(), settings[k].name());
                 let mut tallies = vec![JudgeTally::default(); judges.len()];
+                let mut judged_frames = Vec::new();
                 if k != 0 || (labeller.is_none() && judges.is_empty()) {
                     let episode =
                         run_episode(scenario, seed, &settings[k], source, config).with_context(context)?;
                     bar.inc(1);
-                    return Ok((k, episode, tallies));
+                    return Ok((k, episode, (tallies, judged_frames)));
                 }
                 let options = plan_options(&settings[k], seed, &config.gripper);
                 let mut views = Vec::new();
@@ -272,6 +276,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                             return;
                         }
                         last_judged = Some(state);
+                        let mut names = Vec::with_capacity(judges.len());
                         for ((net, tally), planner) in
                             judges.iter_mut().zip(tallies.iter_mut()).zip(&judge_planners)
                         {
@@ -280,8 +285,11 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                                 net: net.as_mut(),
                             };
                             let planned = judged.grasps(frame, scene.workspace(), &options).ok();
-                            tally.add(planned.map(|g| g.first().map(|g| grasp_outcome(scene, g, config))));
+                            let outcome = planned.map(|g| g.first().map(|g| grasp_outcome(scene, g, config)));
+                            tally.add(outcome);
+                            names.push(JudgeTally::outcome_name(outcome));
                         }
+                        judged_frames.push((step, names));
                     },
                 )
                 .with_context(context)?;
@@ -291,7 +299,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                         .with_context(context)?;
                 }
                 bar.inc(1);
-                Ok((k, episode, tallies))
+                Ok((k, episode, (tallies, judged_frames)))
             },
         )
         .collect();
@@ -303,7 +311,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         let mut all = JudgeTally::default();
         for &scenario in scenarios {
             let mut tally = JudgeTally::default();
-            for (_, _, tallies) in results
+            for (_, _, (tallies, _)) in results
                 .iter()
                 .filter(|(k, e, _)| *k == 0 && e.scenario == scenario)
             {
@@ -320,6 +328,16 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
             .position(|s| s.name() == scenario)
             .unwrap_or(scenarios.len())
     });
+    // Each judged frame's outcomes, for paired tests between the models.
+    let judged_frames: Vec<serde_json::Value> = results
+        .iter()
+        .filter(|(k, _, _)| *k == 0)
+        .flat_map(|(_, e, (_, frames))| {
+            frames.iter().map(move |(step, outcomes)| {
+                serde_json::json!({"scenario": e.scenario.name(), "seed": e.seed, "step": step, "outcomes": outcomes})
+            })
+        })
+        .collect();
     let results: Vec<(usize, Episode)> = results.into_iter().map(|(k, e, _)| (k, e)).collect();
     // For eval.json: scenario, setting, seed order.
     let mut episodes_in_order: Vec<&(usize, Episode)> = results.iter().collect();
@@ -459,6 +477,8 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
             "plan_ms_p50": s.plan_ms[0], "plan_ms_p90": s.plan_ms[1],
             "success_ci95": s.success_ci95, "removal_ci95": s.removal_ci95,
         })).collect::<Vec<_>>(),
+        "judged_models": judge.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+        "judged_frames": judged_frames,
         "judged": judged_rows.iter().map(|(scenario, model, t)| serde_json::json!({
             "scenario": scenario, "model": model, "frames": t.frames, "no_grasp": t.no_grasp,
             "planning_errors": t.errors, "tried": t.tried(), "held": t.held,

@@ -1493,6 +1493,16 @@ mod eval {
         let table = judge_table(&[("pile".into(), "m.onnx".into(), tally)]);
         assert!(table.contains("| pile | m.onnx | 4 (1 planning errors) | 1 | 2 | 1 | 0.25 (1/4) | 0.50 (1/2) | slip during lift 1 |"), "{table}");
         assert!(judge_table(&[]).is_empty());
+        let names: Vec<&str> = [
+            None,
+            Some(None),
+            Some(Some(None)),
+            Some(Some(Some(Failure::ObjectMissed))),
+        ]
+        .into_iter()
+        .map(JudgeTally::outcome_name)
+        .collect();
+        assert_eq!(names, ["planning error", "no grasp", "held", "object missed"]);
     }
 
     /// Plans the same ranked list for every frame.
