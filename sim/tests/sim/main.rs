@@ -1297,6 +1297,18 @@ mod eval {
         assert!(attempts > 0, "the baseline tried no grasp at all");
     }
 
+    /// `run_episode_with` planning in process with `planner` and `net`.
+    fn hooked_episode(
+        planner: &Planner,
+        net: &mut dyn GraspNet,
+        (scenario, seed, setting): (Scenario, u64, &Setting),
+        config: &EpisodeConfig,
+        hook: &mut dyn FnMut(usize, &mvgrasp_sim::scene::Scene, &Frame),
+    ) -> Episode {
+        let mut source = InProcess { planner, net };
+        mvgrasp_sim::eval::run_episode_with(scenario, seed, setting, &mut source, config, hook).unwrap()
+    }
+
     /// `sim eval --label-frames`: every frame the planner gets is shown to
     /// the hook in step order without changing the episode, and a
     /// `FrameLabeller` writes them as a dataset whose views name their
@@ -1304,7 +1316,6 @@ mod eval {
     #[test]
     fn episode_frames_are_labelled_as_datagen_labels_scenes() {
         use mvgrasp_sim::dataset::{DatagenConfig, FrameLabeller};
-        use mvgrasp_sim::eval::run_episode_with;
 
         let mut net = MomentsNet::default();
         let contract = net.contract().clone();
@@ -1337,27 +1348,19 @@ mod eval {
         )
         .unwrap();
         let (mut steps, mut views, mut objects) = (Vec::new(), Vec::new(), Vec::new());
-        let labelled = {
-            let mut source = InProcess {
-                planner: &planner,
-                net: &mut net,
-            };
-            run_episode_with(
-                scenario,
-                seed,
-                &setting,
-                &mut source,
-                &config,
-                &mut |step, scene, frame| {
-                    steps.push(step);
-                    objects.push(scene.objects.len());
-                    if labeller.wants(step) {
-                        views.extend(labeller.label(&planner, (scenario, seed, step), scene, frame));
-                    }
-                },
-            )
-            .unwrap()
-        };
+        let labelled = hooked_episode(
+            &planner,
+            &mut net,
+            (scenario, seed, &setting),
+            &config,
+            &mut |step, scene, frame| {
+                steps.push(step);
+                objects.push(scene.objects.len());
+                if labeller.wants(step) {
+                    views.extend(labeller.label(&planner, (scenario, seed, step), scene, frame));
+                }
+            },
+        );
         let plain = {
             let mut source = InProcess {
                 planner: &planner,
@@ -1416,7 +1419,7 @@ mod eval {
     /// and leaves the scene as it was; the tallies count and table it.
     #[test]
     fn a_judged_grasp_ends_as_the_episode_s_attempt_did() {
-        use mvgrasp_sim::eval::{JudgeTally, grasp_outcome, judge_table, plan_options, run_episode_with};
+        use mvgrasp_sim::eval::{JudgeTally, grasp_outcome, judge_table, plan_options};
 
         let mut net = MomentsNet::default();
         let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).unwrap();
@@ -1427,34 +1430,26 @@ mod eval {
             let options = plan_options(&setting, seed, &config.gripper);
             let mut judged = Vec::new();
             let mut twin = MomentsNet::default();
-            let episode = {
-                let mut source = InProcess {
-                    planner: &planner,
-                    net: &mut net,
-                };
-                run_episode_with(
-                    scenario,
-                    seed,
-                    &setting,
-                    &mut source,
-                    &config,
-                    &mut |_, scene, frame| {
-                        let before: Vec<_> = scene.objects.iter().map(|o| o.world_from_object).collect();
-                        let mut judge = InProcess {
-                            planner: &planner,
-                            net: &mut twin,
-                        };
-                        let best = judge.grasps(frame, scene.workspace(), &options).unwrap();
-                        judged.push(
-                            best.first()
-                                .map(|g| (g.world_from_grasp, grasp_outcome(scene, g, &config))),
-                        );
-                        let after: Vec<_> = scene.objects.iter().map(|o| o.world_from_object).collect();
-                        assert_eq!(before, after, "judging moved the scene");
-                    },
-                )
-                .unwrap()
-            };
+            let episode = hooked_episode(
+                &planner,
+                &mut net,
+                (scenario, seed, &setting),
+                &config,
+                &mut |_, scene, frame| {
+                    let before: Vec<_> = scene.objects.iter().map(|o| o.world_from_object).collect();
+                    let mut judge = InProcess {
+                        planner: &planner,
+                        net: &mut twin,
+                    };
+                    let best = judge.grasps(frame, scene.workspace(), &options).unwrap();
+                    judged.push(
+                        best.first()
+                            .map(|g| (g.world_from_grasp, grasp_outcome(scene, g, &config))),
+                    );
+                    let after: Vec<_> = scene.objects.iter().map(|o| o.world_from_object).collect();
+                    assert_eq!(before, after, "judging moved the scene");
+                },
+            );
             // Where the episode tried the judge's grasp (no earlier failure
             // made it take another), both end the same way.
             for (attempt, judged) in episode.attempts.iter().zip(&judged) {
