@@ -41,14 +41,15 @@
 //! moving anything was tried again.)
 
 use std::collections::BTreeMap;
+use std::path::Path;
 use std::time::Instant;
 
 use mvgrasp_client::request::{depth_request, pose_from_message};
 use mvgrasp_client::{PlannerClient, pb};
 use mvgrasp_core::rng::SplitMix64;
 use mvgrasp_core::{
-    ClusterConfig, CreaseConfig, FieldOfView, GraspNet, ModelContract, PlanOptions, Planner, PlannerConfig,
-    Reattach, Repairs, ViewAxis, ViewPolicy, Workspace,
+    ClusterConfig, CreaseConfig, FieldOfView, Grasp, GraspNet, ModelContract, Plan, PlanOptions, Planner,
+    PlannerConfig, Reattach, Repairs, ViewAxis, ViewPolicy, Workspace,
 };
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use parry3d::math::Pose;
@@ -137,6 +138,22 @@ impl Setting {
             ViewPolicy::Random { .. } => "random",
         };
         format!("{policy}:{}", self.tau)
+    }
+}
+
+/// The planner's squaring limit (`sim eval --square-turn-deg`, degrees):
+/// how far a grasp may be turned about its approach to square it to the
+/// surfaces its pads meet ([`mvgrasp_core::decode::HandConfig::square_turn_deg`]);
+/// 0 turns squaring off. Refused outside 0-90 degrees (a quarter turn
+/// already swaps the faces the pads meet) or when not a number.
+pub fn square_turn_setting(deg: f64) -> Result<f64> {
+    if (0.0..=90.0).contains(&deg) {
+        Ok(deg)
+    } else {
+        Err(Error::Invalid {
+            field: "square-turn-deg",
+            reason: format!("{deg} is not within 0-90 degrees"),
+        })
     }
 }
 
@@ -331,6 +348,18 @@ pub struct Attempt {
     /// was tipped from the way the scene generator stands it upright (its
     /// own `z` against the world's up; [`object_tilt_deg`]).
     pub tilt_deg: Option<f32>,
+}
+
+impl Attempt {
+    /// How it ended: "ok" (carried to the basket), "collision on approach:
+    /// SITE" ([`CollisionSite::name`]) or the failure's name.
+    pub fn outcome_name(&self) -> String {
+        match (self.failure, self.collision) {
+            (None, _) => "ok".to_owned(),
+            (Some(_), Some(site)) => format!("collision on approach: {}", site.name()),
+            (Some(f), None) => f.name().to_owned(),
+        }
+    }
 }
 
 /// The angle (degrees, 0-180) between `object`'s own `z` and the world's
@@ -579,6 +608,64 @@ pub struct InProcess<'a> {
     pub net: &'a mut dyn GraspNet,
 }
 
+impl InProcess<'_> {
+    fn plan(&mut self, frame: &Frame, workspace: Workspace, options: &PlanOptions) -> Result<Plan> {
+        let bytes = frame.depth_le_bytes();
+        let input = frame.scene_input(&bytes, workspace);
+        self.planner
+            .plan(&input, options, self.net)
+            .map_err(|e| Error::Scene(format!("planner: {e}")))
+    }
+
+    /// [`GraspSource::grasps`], each grasp with the view it came from as the
+    /// network read it (`size x size`, the contract's normalisation).
+    pub fn grasps_with_views(
+        &mut self,
+        frame: &Frame,
+        workspace: Workspace,
+        options: &PlanOptions,
+    ) -> Result<Vec<(PlannedGrasp, Vec<f32>)>> {
+        let keeping = PlanOptions {
+            keep_views: true,
+            ..options.clone()
+        };
+        let plan = self.plan(frame, workspace, &keeping)?;
+        plan.grasps
+            .iter()
+            .filter_map(|g| {
+                let planned = planned_grasp(&plan, g)?;
+                let view = plan
+                    .debug_views
+                    .iter()
+                    .find(|d| d.object_id == g.object_id && d.view.axis == g.view);
+                Some(match view {
+                    Some(d) => Ok((planned, d.view.image.clone())),
+                    None => Err(Error::Scene(format!(
+                        "planner: grasp on object {} names a {} view it did not keep",
+                        g.object_id,
+                        g.view.name()
+                    ))),
+                })
+            })
+            .collect()
+    }
+}
+
+/// `g` of `plan` with where its object was seen; `None` for a grasp on no
+/// object of the plan.
+fn planned_grasp(plan: &Plan, g: &Grasp) -> Option<PlannedGrasp> {
+    let object = plan.objects.iter().find(|o| o.id == g.object_id)?;
+    Some(PlannedGrasp {
+        world_from_grasp: g.world_from_grasp,
+        width_m: g.width_m,
+        quality: g.quality,
+        object_centroid: Point3::from(object.frame.world_from_object.translation.vector),
+        view: g.view,
+        pixel: g.pixel,
+        repairs: g.repairs,
+    })
+}
+
 impl GraspSource for InProcess<'_> {
     fn grasps(
         &mut self,
@@ -586,28 +673,68 @@ impl GraspSource for InProcess<'_> {
         workspace: Workspace,
         options: &PlanOptions,
     ) -> Result<Vec<PlannedGrasp>> {
-        let bytes = frame.depth_le_bytes();
-        let input = frame.scene_input(&bytes, workspace);
-        let plan = self
-            .planner
-            .plan(&input, options, self.net)
-            .map_err(|e| Error::Scene(format!("planner: {e}")))?;
+        let plan = self.plan(frame, workspace, options)?;
         Ok(plan
             .grasps
             .iter()
-            .filter_map(|g| {
-                let object = plan.objects.iter().find(|o| o.id == g.object_id)?;
-                Some(PlannedGrasp {
-                    world_from_grasp: g.world_from_grasp,
-                    width_m: g.width_m,
-                    quality: g.quality,
-                    object_centroid: Point3::from(object.frame.world_from_object.translation.vector),
-                    view: g.view,
-                    pixel: g.pixel,
-                    repairs: g.repairs,
-                })
-            })
+            .filter_map(|g| planned_grasp(&plan, g))
             .collect())
+    }
+}
+
+/// An in-process source that keeps every grasp it offers with the view it
+/// came from, frame by frame (`sim eval --attempt-views`): after an
+/// episode, [`Self::attempt_views`] gives each attempt the view the
+/// network read, so physics outcomes can be learned from.
+pub struct ViewKeeping<'a> {
+    /// The planner and network.
+    pub inner: InProcess<'a>,
+    /// Per call (frame): the poses offered and their views.
+    frames: Vec<Vec<(Isometry3<f64>, Vec<f32>)>>,
+}
+
+impl<'a> ViewKeeping<'a> {
+    /// Keeps the views of `inner`'s grasps.
+    pub fn new(inner: InProcess<'a>) -> Self {
+        Self {
+            inner,
+            frames: Vec::new(),
+        }
+    }
+
+    /// Each attempt of `episode` (planned by this source, from its first
+    /// call on) with the view its grasp came from; `None` where the tried
+    /// pose is none this source offered on that frame.
+    pub fn attempt_views(&self, episode: &Episode) -> Vec<Option<&[f32]>> {
+        episode
+            .attempts
+            .iter()
+            .enumerate()
+            .map(|(k, a)| {
+                self.frames
+                    .get(k)?
+                    .iter()
+                    .find(|(pose, _)| *pose == a.world_from_grasp)
+                    .map(|(_, view)| view.as_slice())
+            })
+            .collect()
+    }
+}
+
+impl GraspSource for ViewKeeping<'_> {
+    fn grasps(
+        &mut self,
+        frame: &Frame,
+        workspace: Workspace,
+        options: &PlanOptions,
+    ) -> Result<Vec<PlannedGrasp>> {
+        let kept = self.inner.grasps_with_views(frame, workspace, options)?;
+        self.frames.push(
+            kept.iter()
+                .map(|(g, view)| (g.world_from_grasp, view.clone()))
+                .collect(),
+        );
+        Ok(kept.into_iter().map(|(g, _)| g).collect())
     }
 }
 
@@ -1076,11 +1203,7 @@ pub fn episode_record(e: &Episode, setting: &str) -> serde_json::Value {
         .attempts
         .iter()
         .map(|a| {
-            let outcome = match (a.failure, a.collision) {
-                (None, _) => "ok".to_owned(),
-                (Some(_), Some(site)) => format!("collision on approach: {}", site.name()),
-                (Some(f), None) => f.name().to_owned(),
-            };
+            let outcome = a.outcome_name();
             let approach = a.world_from_grasp.rotation * Vector3::z();
             let down_deg = (-approach.z).clamp(-1.0, 1.0).asin().to_degrees();
             let (label, family) = a.label.map_or((None, None), |(l, f)| (Some(l), Some(f.name())));
@@ -1111,6 +1234,66 @@ pub fn episode_record(e: &Episode, setting: &str) -> serde_json::Value {
         "end": e.end.name(),
         "attempts": attempts,
     })
+}
+
+/// Writes the attempts of `episode` whose view is known (`views`, one per
+/// attempt: [`ViewKeeping::attempt_views`]) into `dir`, for learning from
+/// physics outcomes (`sim eval --attempt-views`):
+/// `attempts_SCENARIO_SEED.npy`, float32 `[n, size_px, size_px]`, each view
+/// as the network read it, and `attempts_SCENARIO_SEED.json`, one record
+/// per row: the attempt's `step` (attempts before it), `view`, `pixel`
+/// `[u, v]` (the quality peak the grasp came from), predicted `quality`,
+/// `width_mm`, `outcome` ("ok" or why not: [`Attempt::outcome_name`]),
+/// analytic `label` and `family` (physics trials only), the planner's
+/// `repairs` and the object's `tilt_deg`. Returns the rows written.
+pub fn write_attempt_views(
+    dir: &Path,
+    episode: &Episode,
+    views: &[Option<&[f32]>],
+    size_px: usize,
+) -> Result<usize> {
+    if views.len() != episode.attempts.len() {
+        return Err(Error::Invalid {
+            field: "attempt views",
+            reason: format!("{} views for {} attempts", views.len(), episode.attempts.len()),
+        });
+    }
+    let mut data = Vec::new();
+    let mut records = Vec::new();
+    for (step, (a, view)) in episode.attempts.iter().zip(views).enumerate() {
+        let Some(view) = view else { continue };
+        if view.len() != size_px * size_px {
+            return Err(Error::Invalid {
+                field: "attempt views",
+                reason: format!("a view of {} pixels, not {size_px} x {size_px}", view.len()),
+            });
+        }
+        data.extend_from_slice(view);
+        let (label, family) = a.label.map_or((None, None), |(l, f)| (Some(l), Some(f.name())));
+        records.push(serde_json::json!({
+            "step": step,
+            "view": a.view.name(),
+            "pixel": a.pixel,
+            "quality": a.quality,
+            "width_mm": (a.width_m * 1e4).round() / 10.0,
+            "outcome": a.outcome_name(),
+            "label": label,
+            "family": family,
+            "repairs": a.repairs.names(),
+            "tilt_deg": a.tilt_deg,
+        }));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| crate::dataset::file_error(dir, e))?;
+    let stem = format!("attempts_{}_{}", episode.scenario.name(), episode.seed);
+    crate::dataset::write_npy(
+        &dir.join(format!("{stem}.npy")),
+        &[records.len(), size_px, size_px],
+        &data,
+    )?;
+    let path = dir.join(format!("{stem}.json"));
+    let text = serde_json::to_string(&records).map_err(|e| Error::Scene(format!("{stem}: {e}")))?;
+    std::fs::write(&path, text).map_err(|e| crate::dataset::file_error(&path, e))?;
+    Ok(records.len())
 }
 
 /// A Markdown table of how the analytic labels fared in physics on the

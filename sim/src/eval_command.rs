@@ -12,8 +12,8 @@ use mvgrasp_sim::camera::render;
 use mvgrasp_sim::dataset::{DATA_VERSION, DatagenConfig, FrameLabeller};
 use mvgrasp_sim::eval::{
     Episode, EpisodeConfig, Failure, GraspSource, InProcess, JudgeTally, Remote, Setting, Summary,
-    collision_list, episode_record, episode_scene, grasp_outcome, judge_table, label_table, markdown_table,
-    plan_options, provenance_table, run_episode, run_episode_with,
+    ViewKeeping, collision_list, episode_record, episode_scene, grasp_outcome, judge_table, label_table,
+    markdown_table, plan_options, provenance_table, run_episode, run_episode_with, write_attempt_views,
 };
 use mvgrasp_sim::files::{DrawnGrasp, write_grasp_snapshot};
 use mvgrasp_sim::scene::Scenario;
@@ -94,6 +94,9 @@ pub struct EvalRun<'a> {
     /// Models whose best grasp is tried on every frame of the first
     /// setting's episodes, from the same state (`--judge`; in process only).
     pub judge: Vec<PathBuf>,
+    /// Write the first setting's attempts with the views their grasps came
+    /// from into this folder (`--attempt-views`; in process only).
+    pub attempt_views: Option<PathBuf>,
 }
 
 /// `--label-frames DIR --label-every N`: the first setting's episode frames,
@@ -118,6 +121,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         snapshots,
         label_frames,
         judge,
+        attempt_views,
     } = run;
     anyhow::ensure!(!settings.is_empty(), "--settings: at least one");
     // The contract (and the model's name) from the model, or the server.
@@ -167,6 +171,9 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         );
         judge_planners.push(Planner::new(planner_config.clone(), theirs)?);
     }
+    if attempt_views.is_some() && matches!(planning, Planning::Server(_)) {
+        anyhow::bail!("--attempt-views needs the in-process planner (not --server)");
+    }
     let command: Vec<String> = std::env::args().collect();
     let labeller = match label_frames {
         None => None,
@@ -207,7 +214,8 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
     let started = std::time::Instant::now();
     // Per episode: its setting, the episode, the judged models' tallies and
     // each judged frame's outcomes (step, one name per model).
-    type Judged = (Vec<JudgeTally>, Vec<(usize, Vec<&'static str>)>);
+    // And the attempts written with their views (--attempt-views).
+    type Judged = (Vec<JudgeTally>, Vec<(usize, Vec<&'static str>)>, usize);
     let results: Vec<anyhow::Result<(usize, Episode, Judged)>> = jobs
         .par_iter()
         .map_init(
@@ -228,13 +236,19 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                     Err(e) => anyhow::bail!("{e:#}"),
                 };
                 let mut in_process;
+                let mut keeping = None;
                 let source: &mut dyn GraspSource = match worker {
                     Worker::Net(net) => {
-                        in_process = InProcess {
+                        let inner = InProcess {
                             planner: &planner,
                             net: net.as_mut(),
                         };
-                        &mut in_process
+                        if k == 0 && attempt_views.is_some() {
+                            keeping.insert(ViewKeeping::new(inner))
+                        } else {
+                            in_process = inner;
+                            &mut in_process
+                        }
                     }
                     Worker::Remote(remote) => remote.as_mut(),
                 };
@@ -244,8 +258,18 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                 if k != 0 || (labeller.is_none() && judges.is_empty()) {
                     let episode =
                         run_episode(scenario, seed, &settings[k], source, config).with_context(context)?;
+                    let written = match (&keeping, attempt_views) {
+                        (Some(keeping), Some(dir)) => write_attempt_views(
+                            dir,
+                            &episode,
+                            &keeping.attempt_views(&episode),
+                            contract.input_size_px,
+                        )
+                        .with_context(context)?,
+                        _ => 0,
+                    };
                     bar.inc(1);
-                    return Ok((k, episode, (tallies, judged_frames)));
+                    return Ok((k, episode, (tallies, judged_frames, written)));
                 }
                 let options = plan_options(&settings[k], seed, &config.gripper);
                 let mut views = Vec::new();
@@ -298,8 +322,18 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                         .write_episode(scenario, seed, &views)
                         .with_context(context)?;
                 }
+                let written = match (&keeping, attempt_views) {
+                    (Some(keeping), Some(dir)) => write_attempt_views(
+                        dir,
+                        &episode,
+                        &keeping.attempt_views(&episode),
+                        contract.input_size_px,
+                    )
+                    .with_context(context)?,
+                    _ => 0,
+                };
                 bar.inc(1);
-                Ok((k, episode, (tallies, judged_frames)))
+                Ok((k, episode, (tallies, judged_frames, written)))
             },
         )
         .collect();
@@ -311,7 +345,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         let mut all = JudgeTally::default();
         for &scenario in scenarios {
             let mut tally = JudgeTally::default();
-            for (_, _, (tallies, _)) in results
+            for (_, _, (tallies, _, _)) in results
                 .iter()
                 .filter(|(k, e, _)| *k == 0 && e.scenario == scenario)
             {
@@ -332,12 +366,13 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
     let judged_frames: Vec<serde_json::Value> = results
         .iter()
         .filter(|(k, _, _)| *k == 0)
-        .flat_map(|(_, e, (_, frames))| {
+        .flat_map(|(_, e, (_, frames, _))| {
             frames.iter().map(move |(step, outcomes)| {
                 serde_json::json!({"scenario": e.scenario.name(), "seed": e.seed, "step": step, "outcomes": outcomes})
             })
         })
         .collect();
+    let attempt_rows: usize = results.iter().map(|(_, _, (_, _, written))| written).sum();
     let results: Vec<(usize, Episode)> = results.into_iter().map(|(k, e, _)| (k, e)).collect();
     // For eval.json: scenario, setting, seed order.
     let mut episodes_in_order: Vec<&(usize, Episode)> = results.iter().collect();
@@ -490,6 +525,31 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", out.display()))?;
     println!("{report}");
     println!("wrote {}/eval.md and eval.json", out.display());
+    if let Some(dir) = attempt_views {
+        let rows = attempt_rows;
+        let manifest = serde_json::json!({
+            "format": "mvgrasp-attempt-views-1",
+            "model": model_name, "model_version": contract.model_version,
+            "contract": {
+                "input_size_px": contract.input_size_px, "pixel_size_m": contract.pixel_size_m,
+                "normalisation": contract.normalisation,
+            },
+            "setting": settings[0].name(), "scenarios": scenarios.iter().map(|s| s.name()).collect::<Vec<_>>(),
+            "seeds": [seeds.start, seeds.end], "attempts": rows,
+            "revision": git_revision(), "command": command,
+        });
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        std::fs::write(
+            dir.join("manifest.json"),
+            serde_json::to_string_pretty(&manifest)?,
+        )
+        .with_context(|| format!("writing {}/manifest.json", dir.display()))?;
+        println!(
+            "attempts with their views ({}): {rows} -> {}",
+            settings[0].name(),
+            dir.display()
+        );
+    }
     if let (Some(labeller), Some(LabelFrames { out: dir, .. })) = (labeller, label_frames) {
         let report = labeller.finish()?;
         println!(

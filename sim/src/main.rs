@@ -7,7 +7,7 @@ use clap::{Parser, Subcommand};
 use mvgrasp_core::rng::SplitMix64;
 use mvgrasp_core::{ModelContract, PlannerConfig};
 use mvgrasp_server::{BackendKind, settings::ModelSettings};
-use mvgrasp_sim::eval::{EpisodeConfig, Setting, crease_setting};
+use mvgrasp_sim::eval::{EpisodeConfig, Setting, crease_setting, square_turn_setting};
 use mvgrasp_sim::{
     camera::{Camera, NoiseModel, render},
     dataset::{DatagenConfig, generate},
@@ -154,6 +154,11 @@ enum Command {
         /// default: the planner's own, `DecodeConfig::opening_margin_m`).
         #[arg(long)]
         opening_margin_mm: Option<f64>,
+        /// The in-process planner turns a grasp about its approach up to this
+        /// far to square it to the surfaces its pads meet (degrees, 0: never;
+        /// default: the planner's own, `HandConfig::square_turn_deg`).
+        #[arg(long)]
+        square_turn_deg: Option<f64>,
         /// Episodes per scenario drawn into OUT/snapshots (first setting).
         #[arg(long, default_value_t = 2)]
         snapshots: usize,
@@ -178,6 +183,12 @@ enum Command {
         /// same frames (in-process planning only).
         #[arg(long, value_delimiter = ',', conflicts_with = "server")]
         judge: Vec<PathBuf>,
+        /// Write the first setting's attempts into this folder, each with the
+        /// view its grasp came from as the network read it, its peak pixel
+        /// and how it ended (`attempts_SCENARIO_SEED.npy` / `.json`): physics
+        /// outcomes to learn from (`train --physics`; in-process planning only).
+        #[arg(long, conflicts_with = "server")]
+        attempt_views: Option<PathBuf>,
     },
     /// Render one scene: depth.png + camera.json (what `mvgrasp plan` reads),
     /// labels.png and preview.png.
@@ -272,10 +283,12 @@ fn main() -> anyhow::Result<()> {
             snapshots,
             server,
             opening_margin_mm,
+            square_turn_deg,
             crease_split,
             label_frames,
             label_every,
             judge,
+            attempt_views,
         } => {
             use_threads(threads)?;
             let scenarios = scenarios_of(&scenarios)?;
@@ -301,6 +314,9 @@ fn main() -> anyhow::Result<()> {
             if let Some(mm) = opening_margin_mm {
                 planner.decode.opening_margin_m = mm / 1000.0;
             }
+            if let Some(deg) = square_turn_deg {
+                planner.hand.square_turn_deg = square_turn_setting(deg)?;
+            }
             planner.cluster.crease = crease_setting(&crease_split)?;
             eval_command(&EvalRun {
                 planning,
@@ -317,6 +333,7 @@ fn main() -> anyhow::Result<()> {
                     every: label_every,
                 }),
                 judge,
+                attempt_views,
             })?;
         }
         Command::PhysicsAgreement {

@@ -20,6 +20,14 @@ with positives (the argmax of the quality map is the metric's grasp).
 network's maps and T's on the same augmented batch (`Teacher`): with T a
 flip-wrapped file (flip_wrap.py) of the network it starts from, one pass
 learns what four flips averaged give (self-distillation).
+`--physics DIR[,DIR]` (folders of `sim eval --attempt-views`, physics.py)
+adds `--physics-weight` times the squared error between the network's
+quality at each tried grasp's pixel, smoothed as the planner smooths it
+(`--physics-sigma-px`), and the physics outcome (1 held, 0 slipped or
+opened too narrow), on a batch of attempts under a random symmetry of
+the square per step (`physics_loss`). `--label-weight 0` drops the label
+loss: with `--teacher` the model it starts from, the network then only
+moves where physics says its picks fail or hold.
 `--architecture skip` or `wide` may start from a `narrow` run (`start_from`).
 Augments each training view (augment.py), and after every epoch
 evaluates the paper's grasp accuracy on the held-out instances. On a GPU
@@ -41,7 +49,7 @@ import time
 import numpy as np
 import torch
 
-from . import augment, augment_torch, dataset, metric
+from . import augment, augment_torch, dataset, metric, physics
 from .model import ARCHITECTURES, GraspNet, squash, train_mode, widen
 
 
@@ -164,6 +172,25 @@ class Teacher:
         return torch.from_numpy(self.session.run(["maps"], {"views": x})[0]).to(views.device)
 
 
+def physics_loss(model, attempts, picked, kernel, symmetry, device="cpu"):
+    """Mean squared error between the network's quality at the pixels of
+    attempts `picked` (after `physics.symmetry` number `symmetry`),
+    smoothed by the 1-D `kernel` in both directions with clamped edges as
+    the planner does, and their outcomes (1 held, 0 failed)."""
+    views, pixels = physics.symmetry(attempts.views[picked], attempts.pixels[picked], symmetry)
+    x = torch.from_numpy(views).unsqueeze(1).to(device)
+    quality = torch.sigmoid(model.raw(x)[:, :1])
+    r = (len(kernel) - 1) // 2
+    k = torch.as_tensor(kernel, device=device)
+    quality = torch.nn.functional.pad(quality, (r, r, r, r), mode="replicate")
+    quality = torch.nn.functional.conv2d(quality, k.view(1, 1, 1, -1))
+    quality = torch.nn.functional.conv2d(quality, k.view(1, 1, -1, 1))
+    at = quality[torch.arange(len(picked), device=device), 0,
+                 torch.as_tensor(pixels[:, 1], device=device), torch.as_tensor(pixels[:, 0], device=device)]
+    held = torch.as_tensor(attempts.held[picked], device=device)
+    return torch.mean((at - held) ** 2)
+
+
 def start_from(model, saved, name):
     """Loads a saved run's weights into `model`: a run of the same
     architecture, or a `narrow` run into a `skip` network (its skip
@@ -209,6 +236,13 @@ def main(argv=None):
     p.add_argument("--teacher", metavar="T.onnx",
                    help="also learn this ONNX model's maps on each augmented batch (e.g. a flip_wrap file)")
     p.add_argument("--teacher-weight", type=float, default=1.0, help="weight of the MSE to --teacher's maps")
+    p.add_argument("--physics", metavar="DIR[,DIR]",
+                   help="also learn physics outcomes of tried grasps (sim eval --attempt-views folders)")
+    p.add_argument("--physics-weight", type=float, default=1.0, help="weight of physics_loss")
+    p.add_argument("--physics-sigma-px", type=float, default=1.0,
+                   help="the planner's quality smoothing (DecodeConfig::smoothing_sigma_px)")
+    p.add_argument("--label-weight", type=float, default=1.0,
+                   help="weight of the label loss (0: none; with --teacher and --physics, see above)")
     p.add_argument("--device", default="cpu")
     p.add_argument("--augment", choices=("auto", "numpy", "torch"), default="auto",
                    help="numpy: per view on the CPU; torch: whole batches on --device, data held there (auto: torch off the CPU)")
@@ -252,9 +286,22 @@ def main(argv=None):
         args.freeze_batchnorm = args.freeze_batchnorm or saved.get("frozen_batchnorm", False)
     model = model.to(device)
     teacher = Teacher(args.teacher, ds.contract, args.threads) if args.teacher else None
+    attempts = None
+    if args.physics:
+        try:
+            attempts = physics.load(args.physics)
+        except ValueError as e:
+            raise SystemExit(f"--physics: {e}")
+        problems = physics.check_contract(attempts, ds.contract)
+        if problems or not len(attempts):
+            raise SystemExit(f"--physics {args.physics}: {problems or 'no attempts that held or failed'}")
+        print(f"physics: {physics.summary(attempts)}", file=sys.stderr)
+        kernel = physics.gaussian_kernel(args.physics_sigma_px)
+    if args.label_weight == 0 and teacher is None and attempts is None:
+        raise SystemExit("--label-weight 0 needs --teacher or --physics: nothing to learn")
     optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
     config = {k: v for k, v in vars(args).items()}
-    config.update(train_views=len(train_idx), eval_views_total=len(eval_idx), unseen_family_views=len(family_idx), torch=torch.__version__,
+    config.update(physics_attempts=len(attempts) if attempts is not None else 0, train_views=len(train_idx), eval_views_total=len(eval_idx), unseen_family_views=len(family_idx), torch=torch.__version__,
                   threads=torch.get_num_threads(), data_version=ds.manifest["data_version"],
                   contract=ds.contract, gripper=ds.manifest["gripper"])
     with open(os.path.join(args.out, "config.json"), "w") as f:
@@ -294,7 +341,8 @@ def main(argv=None):
                     group["lr"] = args.lr * (0.02 + 0.98 * 0.5 * (1 + np.cos(np.pi * share)))
             optimiser.zero_grad()
             raw = model.raw(x)
-            loss = weighted_mse(squash(raw), y, args.positive_weight, args.balance_positives, args.empty_view_weight)
+            loss = args.label_weight * weighted_mse(squash(raw), y, args.positive_weight, args.balance_positives,
+                                                    args.empty_view_weight)
             if args.peak_weight:
                 loss = loss + args.peak_weight * peak_loss(torch.sigmoid(raw[:, 0]), y[:, 0])
             if teacher is not None:
@@ -302,6 +350,10 @@ def main(argv=None):
             if args.rank_weight:
                 scores = raw[:, 0] if not args.rank_temperature else torch.sigmoid(raw[:, 0]) / args.rank_temperature
                 loss = loss + args.rank_weight * rank_loss(scores, y[:, 0])
+            if attempts is not None:
+                picked = rng.integers(0, len(attempts), size=args.batch)
+                loss = loss + args.physics_weight * physics_loss(model, attempts, picked, kernel,
+                                                                 int(rng.integers(0, 8)), device)
             loss.backward()
             optimiser.step()
             losses.append(loss.detach())

@@ -13,7 +13,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from mvgrasp_train import augment, dataset, evaluate_onnx, metric, refusals, repeatability  # noqa: E402
+from mvgrasp_train import augment, dataset, evaluate_onnx, metric, physics, refusals, repeatability  # noqa: E402
 
 
 def line_view(l, u0, v0, phi, half):
@@ -451,3 +451,89 @@ class Repeatability(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+def write_attempts(root, rows, l=8, contract=None, stem="attempts_pile_5"):
+    """A `sim eval --attempt-views` folder: one episode whose views are
+    `k + pixel index` so each row can be told apart."""
+    os.makedirs(root, exist_ok=True)
+    views = np.stack([np.full((l, l), float(k), np.float32) for k in range(len(rows))]) if rows else \
+        np.zeros((0, l, l), np.float32)
+    np.save(os.path.join(root, f"{stem}.npy"), views)
+    with open(os.path.join(root, f"{stem}.json"), "w") as f:
+        json.dump([{"step": k, "view": "top", "pixel": list(p), "quality": 0.5, "outcome": o}
+                   for k, (p, o) in enumerate(rows)], f)
+    with open(os.path.join(root, "manifest.json"), "w") as f:
+        json.dump({"format": physics.FORMAT,
+                   "contract": contract or {"input_size_px": l, "pixel_size_m": 0.0033333, "normalisation": "cube-v1"}},
+                  f)
+
+
+class PhysicsAttempts(unittest.TestCase):
+    ROWS = [((1, 2), "ok"), ((3, 4), "slip during lift"), ((5, 6), "collision on approach: the table (palm)"),
+            ((0, 7), "width too small"), ((7, 0), "object missed"),
+            ((2, 2), "collision on approach: the object (left pad), at the grasp")]
+
+    def test_held_and_the_network_s_failures_are_read_the_rest_left_out(self):
+        with tempfile.TemporaryDirectory() as d:
+            write_attempts(d, self.ROWS)
+            a = physics.load(d)
+            self.assertEqual(len(a), 4)
+            np.testing.assert_array_equal(a.held, [1.0, 0.0, 0.0, 0.0])
+            np.testing.assert_array_equal(a.pixels, [[1, 2], [3, 4], [0, 7], [2, 2]])
+            # Each row keeps its own view (row k is filled with k).
+            np.testing.assert_array_equal(a.views[:, 0, 0], [0.0, 1.0, 3.0, 5.0])
+            self.assertIn("4 attempts, 25.0% held", physics.summary(a))
+            self.assertIn("collision on approach: the object 1", physics.summary(a))
+            slips_only = physics.load(d, failures=("slip during lift",))
+            np.testing.assert_array_equal(slips_only.held, [1.0, 0.0])
+            self.assertEqual(physics.check_contract(a, {"input_size_px": 8, "pixel_size_m": 0.0033333333,
+                                                        "normalisation": "cube-v1"}), [])
+            wrong = physics.check_contract(a, {"input_size_px": 72, "pixel_size_m": 0.0033333333,
+                                               "normalisation": "cube-v1"})
+            self.assertEqual(len(wrong), 1)
+            self.assertIn("input_size_px", wrong[0])
+
+    def test_bad_folders_say_why(self):
+        with tempfile.TemporaryDirectory() as d:
+            with self.assertRaisesRegex(ValueError, "no manifest.json"):
+                physics.load(d)
+            with self.assertRaisesRegex(ValueError, "no --attempt-views folder"):
+                physics.load("")
+            write_attempts(os.path.join(d, "a"), [((9, 0), "ok")])
+            with self.assertRaisesRegex(ValueError, "outside the 8 px view"):
+                physics.load(os.path.join(d, "a"))
+            write_attempts(os.path.join(d, "b"), self.ROWS)
+            os.remove(os.path.join(d, "b", "attempts_pile_5.json"))
+            with open(os.path.join(d, "b", "attempts_pile_5.json"), "w") as f:
+                json.dump([{"pixel": [0, 0], "outcome": "ok"}], f)
+            with self.assertRaisesRegex(ValueError, "views \\(6, 8, 8\\) for 1 rows"):
+                physics.load(os.path.join(d, "b"))
+            write_attempts(os.path.join(d, "c"), self.ROWS)
+            write_attempts(os.path.join(d, "e"), self.ROWS, l=8,
+                           contract={"input_size_px": 8, "pixel_size_m": 0.005, "normalisation": "cube-v1"})
+            with self.assertRaisesRegex(ValueError, "contract"):
+                physics.load(f"{d}/c,{d}/e")
+            two = physics.load(f"{d}/c,{d}/c")
+            self.assertEqual(len(two), 8)
+
+    def test_symmetries_move_the_pixel_with_the_view(self):
+        rng = np.random.default_rng(2)
+        views = rng.uniform(0, 1, (4, 9, 9)).astype(np.float32)
+        pixels = rng.integers(0, 9, (4, 2))
+        seen = set()
+        for k in range(8):
+            v, p = physics.symmetry(views, pixels, k)
+            for n in range(4):
+                # The value under the pixel travels with it.
+                self.assertEqual(v[n, p[n, 1], p[n, 0]], views[n, pixels[n, 1], pixels[n, 0]])
+            seen.add(v.tobytes())
+        self.assertEqual(len(seen), 8, "eight different images")
+        np.testing.assert_array_equal(physics.symmetry(views, pixels, 0)[0], views)
+
+    def test_the_kernel_is_the_planner_s(self):
+        k = physics.gaussian_kernel(1.0)
+        self.assertEqual(len(k), 7)  # radius ceil(3 sigma), as core::decode::smooth
+        self.assertAlmostEqual(float(k.sum()), 1.0, places=6)
+        self.assertEqual(int(np.argmax(k)), 3)
+        np.testing.assert_allclose(k, k[::-1])

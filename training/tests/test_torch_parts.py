@@ -366,3 +366,61 @@ class TeacherTarget(unittest.TestCase):
             with self.assertRaises(SystemExit) as raised:
                 Teacher(self.MODEL, {**self.CONTRACT, key: value})
             self.assertIn(f"mvgrasp.{key}", str(raised.exception))
+
+
+@unittest.skipIf(MISSING, REASON)
+class PhysicsTerm(unittest.TestCase):
+    def attempts(self, n=6, l=12):
+        from mvgrasp_train import physics
+        rng = np.random.default_rng(4)
+        return physics.Attempts(views=rng.uniform(0, 1, (n, l, l)).astype(np.float32),
+                                pixels=rng.integers(0, l, (n, 2)), held=(np.arange(n) % 2).astype(np.float32))
+
+    def test_the_quality_is_read_smoothed_at_the_pixel_as_the_planner_reads_it(self):
+        import torch
+        from mvgrasp_train import physics
+        from mvgrasp_train.train import physics_loss
+
+        class Logits:
+            """raw(): the view itself as the quality logit."""
+            def raw(self, x):
+                return torch.cat([x, torch.zeros_like(x).repeat(1, 3, 1, 1)], dim=1)
+
+        a = self.attempts()
+        kernel = physics.gaussian_kernel(1.0)
+        picked = np.array([0, 3, 5])
+        got = float(physics_loss(Logits(), a, picked, kernel, symmetry=0))
+        # The planner's smoothing in numpy: clamped edges, rows then columns.
+        r = len(kernel) // 2
+        want = []
+        for i in picked:
+            q = 1 / (1 + np.exp(-a.views[i].astype(np.float64)))
+            q = np.pad(q, r, mode="edge")
+            q = np.apply_along_axis(lambda row: np.convolve(row, kernel, mode="valid"), 1, q)
+            q = np.apply_along_axis(lambda col: np.convolve(col, kernel, mode="valid"), 0, q)
+            u, v = a.pixels[i]
+            want.append((q[v, u] - a.held[i]) ** 2)
+        self.assertAlmostEqual(got, float(np.mean(want)), places=5)
+        # A symmetry moves views and pixels together: the same loss.
+        for k in range(8):
+            self.assertAlmostEqual(float(physics_loss(Logits(), a, picked, kernel, symmetry=k)), got, places=5)
+
+    def test_steps_on_it_move_the_quality_towards_the_outcomes(self):
+        import torch
+        from mvgrasp_train import physics
+        from mvgrasp_train.model import GraspNet
+        from mvgrasp_train.train import physics_loss
+
+        torch.manual_seed(0)
+        model = GraspNet("narrow")
+        model.eval()
+        a = self.attempts(n=4, l=72)
+        kernel = physics.gaussian_kernel(1.0)
+        picked = np.arange(4)
+        before = float(physics_loss(model, a, picked, kernel, 0))
+        optimiser = torch.optim.Adam(model.parameters(), lr=1e-3)
+        for _ in range(20):
+            optimiser.zero_grad()
+            physics_loss(model, a, picked, kernel, 0).backward()
+            optimiser.step()
+        self.assertLess(float(physics_loss(model, a, picked, kernel, 0)), 0.5 * before)

@@ -986,7 +986,7 @@ mod eval {
         Attempt, CollisionSite, End, Episode, EpisodeConfig, Failure, GraspSource, InProcess, PlannedGrasp,
         Setting, Summary, collision_list, crease_setting, crease_text, episode_bootstrap, episode_record,
         episode_scene, horizontal_lever_m, label_table, markdown_table, object_tilt_deg,
-        objects_outside_view, pose_name, provenance_table, run_episode, same_grasp,
+        objects_outside_view, pose_name, provenance_table, run_episode, same_grasp, square_turn_setting,
     };
     use mvgrasp_sim::grasp::{HandPart, Obstacle, pose_of, weight_torque_nm};
     use mvgrasp_sim::objects::Family;
@@ -1191,6 +1191,17 @@ mod eval {
     }
 
     #[test]
+    fn square_turn_settings_within_a_quarter_turn_only() {
+        for ok in [0.0, 15.0, 35.0, 90.0] {
+            assert_eq!(square_turn_setting(ok).unwrap(), ok);
+        }
+        for bad in [-1.0, 90.5, f64::NAN, f64::INFINITY] {
+            let e = square_turn_setting(bad).unwrap_err().to_string();
+            assert!(e.contains("square-turn-deg") && e.contains("0-90"), "{bad}: {e}");
+        }
+    }
+
+    #[test]
     fn crease_settings_parse_and_bad_ones_say_why() {
         assert_eq!(crease_setting("on").unwrap(), Some(CreaseConfig::default()));
         assert_eq!(crease_setting("off").unwrap(), None);
@@ -1307,6 +1318,114 @@ mod eval {
     ) -> Episode {
         let mut source = InProcess { planner, net };
         mvgrasp_sim::eval::run_episode_with(scenario, seed, setting, &mut source, config, hook).unwrap()
+    }
+
+    /// `sim eval --attempt-views`: keeping the views changes nothing about
+    /// the episode, every attempt gets the view its grasp came from (the
+    /// network reads the attempt's smoothed quality at its pixel there), and the
+    /// files hold one row per attempt.
+    #[test]
+    fn each_attempt_keeps_the_view_its_grasp_came_from() {
+        use mvgrasp_core::{Channel, ViewBatch};
+        use mvgrasp_sim::eval::{ViewKeeping, write_attempt_views};
+
+        let mut net = MomentsNet::default();
+        let contract = net.contract().clone();
+        let l = contract.input_size_px;
+        let planner = Planner::new(PlannerConfig::default(), contract.clone()).unwrap();
+        let config = EpisodeConfig::default();
+        let setting = Setting::parse("all:0.1").unwrap();
+        let (scenario, seed) = (Scenario::Pile, 900_000);
+        let plain = hooked_episode(
+            &planner,
+            &mut net,
+            (scenario, seed, &setting),
+            &config,
+            &mut |_, _, _| {},
+        );
+        let mut keeping = ViewKeeping::new(InProcess {
+            planner: &planner,
+            net: &mut net,
+        });
+        let kept = run_episode(scenario, seed, &setting, &mut keeping, &config).unwrap();
+        let outcomes = |e: &Episode| {
+            let tried: Vec<_> = e
+                .attempts
+                .iter()
+                .map(|a| (a.quality, a.failure, a.pixel, a.world_from_grasp))
+                .collect();
+            (e.removed, e.fell_off, e.end, tried)
+        };
+        assert_eq!(outcomes(&kept), outcomes(&plain));
+        assert!(kept.attempts.len() >= 3, "{} attempts", kept.attempts.len());
+        let views: Vec<Vec<f32>> = keeping
+            .attempt_views(&kept)
+            .into_iter()
+            .map(|v| v.expect("every attempt has its view").to_vec())
+            .collect();
+        let mut again = MomentsNet::default();
+        let q = contract.channel_index(Channel::Quality);
+        for (a, view) in kept.attempts.iter().zip(&views) {
+            assert_eq!(view.len(), l * l);
+            let maps = again
+                .infer(&ViewBatch {
+                    size_px: l,
+                    len: 1,
+                    data: view.clone(),
+                })
+                .unwrap();
+            // The planner peaks on the smoothed quality map.
+            let quality = mvgrasp_core::decode::smooth(
+                &maps.data[q * l * l..(q + 1) * l * l],
+                l,
+                l,
+                planner.config().decode.smoothing_sigma_px,
+            );
+            let [u, v] = a.pixel.map(|p| p as usize);
+            let at = quality[v * l + u];
+            assert!(
+                (at - a.quality).abs() < 1e-5,
+                "quality {} at the pixel, {} planned",
+                at,
+                a.quality
+            );
+        }
+        let refs: Vec<Option<&[f32]>> = views.iter().map(|v| Some(v.as_slice())).collect();
+        let out = std::env::temp_dir().join(format!("mvgrasp-attempt-views-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        assert!(
+            write_attempt_views(&out, &kept, &refs[1..], l).is_err(),
+            "one view short"
+        );
+        let mut skipped = refs.clone();
+        skipped[0] = None;
+        let rows = write_attempt_views(&out, &kept, &skipped, l).unwrap();
+        assert_eq!(rows, kept.attempts.len() - 1);
+        let stem = out.join(format!("attempts_pile_{seed}"));
+        let records: Vec<serde_json::Value> =
+            serde_json::from_str(&std::fs::read_to_string(stem.with_extension("json")).unwrap()).unwrap();
+        assert_eq!(records.len(), rows);
+        for (r, (step, a)) in records.iter().zip(kept.attempts.iter().enumerate().skip(1)) {
+            assert_eq!(r["step"], step);
+            assert_eq!(r["pixel"], serde_json::json!(a.pixel));
+            assert_eq!(r["outcome"], a.outcome_name());
+            assert_eq!(r["view"], a.view.name());
+        }
+        let npy = std::fs::read(stem.with_extension("npy")).unwrap();
+        let header = String::from_utf8_lossy(&npy[10..npy.len().min(128)]).into_owned();
+        assert!(header.contains(&format!("({rows}, {l}, {l})")), "{header}");
+        assert_eq!(
+            npy.len() % 64,
+            (4 * rows * l * l) % 64,
+            "header padded to 64 bytes"
+        );
+        let first = &npy[npy.len() - 4 * rows * l * l..][..4 * l * l];
+        let back: Vec<f32> = first
+            .chunks(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
+        assert_eq!(back, views[1]);
+        std::fs::remove_dir_all(&out).unwrap();
     }
 
     /// `sim eval --label-frames`: every frame the planner gets is shown to
