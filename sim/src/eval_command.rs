@@ -253,21 +253,23 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                     Worker::Remote(remote) => remote.as_mut(),
                 };
                 let context = || format!("{} seed {seed} {}", scenario.name(), settings[k].name());
+                // The episode's attempts with their views (--attempt-views): rows written.
+                let write_kept =
+                    |keeping: &Option<ViewKeeping>, episode: &Episode| match (keeping, attempt_views) {
+                        (Some(keeping), Some(dir)) => write_attempt_views(
+                            dir,
+                            episode,
+                            &keeping.attempt_views(episode),
+                            contract.input_size_px,
+                        ),
+                        _ => Ok(0),
+                    };
                 let mut tallies = vec![JudgeTally::default(); judges.len()];
                 let mut judged_frames = Vec::new();
                 if k != 0 || (labeller.is_none() && judges.is_empty()) {
                     let episode =
                         run_episode(scenario, seed, &settings[k], source, config).with_context(context)?;
-                    let written = match (&keeping, attempt_views) {
-                        (Some(keeping), Some(dir)) => write_attempt_views(
-                            dir,
-                            &episode,
-                            &keeping.attempt_views(&episode),
-                            contract.input_size_px,
-                        )
-                        .with_context(context)?,
-                        _ => 0,
-                    };
+                    let written = write_kept(&keeping, &episode).with_context(context)?;
                     bar.inc(1);
                     return Ok((k, episode, (tallies, judged_frames, written)));
                 }
@@ -322,16 +324,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                         .write_episode(scenario, seed, &views)
                         .with_context(context)?;
                 }
-                let written = match (&keeping, attempt_views) {
-                    (Some(keeping), Some(dir)) => write_attempt_views(
-                        dir,
-                        &episode,
-                        &keeping.attempt_views(&episode),
-                        contract.input_size_px,
-                    )
-                    .with_context(context)?,
-                    _ => 0,
-                };
+                let written = write_kept(&keeping, &episode).with_context(context)?;
                 bar.inc(1);
                 Ok((k, episode, (tallies, judged_frames, written)))
             },
