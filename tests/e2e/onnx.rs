@@ -138,6 +138,7 @@ fn golden_vectors_match_through_ort() {
     check_golden("models/mvgrasp.onnx", "models/golden");
     check_golden("models/mvgrasp-paper.onnx", "models/golden-paper");
     check_golden("models/mvgrasp-sim3.onnx", "models/golden-sim3");
+    check_golden("models/mvgrasp-physics.onnx", "models/golden-physics");
 }
 
 fn check_golden(file: &str, golden: &str) {
