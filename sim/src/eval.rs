@@ -728,13 +728,17 @@ impl GraspSource for ViewKeeping<'_> {
         workspace: Workspace,
         options: &PlanOptions,
     ) -> Result<Vec<PlannedGrasp>> {
-        let kept = self.inner.grasps_with_views(frame, workspace, options)?;
-        self.frames.push(
-            kept.iter()
-                .map(|(g, view)| (g.world_from_grasp, view.clone()))
-                .collect(),
-        );
-        Ok(kept.into_iter().map(|(g, _)| g).collect())
+        let (grasps, views): (Vec<_>, Vec<_>) = self
+            .inner
+            .grasps_with_views(frame, workspace, options)?
+            .into_iter()
+            .map(|(g, view)| {
+                let pose = g.world_from_grasp;
+                (g, (pose, view))
+            })
+            .unzip();
+        self.frames.push(views);
+        Ok(grasps)
     }
 }
 

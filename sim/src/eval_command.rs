@@ -519,7 +519,6 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
     println!("{report}");
     println!("wrote {}/eval.md and eval.json", out.display());
     if let Some(dir) = attempt_views {
-        let rows = attempt_rows;
         let manifest = serde_json::json!({
             "format": "mvgrasp-attempt-views-1",
             "model": model_name, "model_version": contract.model_version,
@@ -528,7 +527,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                 "normalisation": contract.normalisation,
             },
             "setting": settings[0].name(), "scenarios": scenarios.iter().map(|s| s.name()).collect::<Vec<_>>(),
-            "seeds": [seeds.start, seeds.end], "attempts": rows,
+            "seeds": [seeds.start, seeds.end], "attempts": attempt_rows,
             "revision": git_revision(), "command": command,
         });
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -538,7 +537,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         )
         .with_context(|| format!("writing {}/manifest.json", dir.display()))?;
         println!(
-            "attempts with their views ({}): {rows} -> {}",
+            "attempts with their views ({}): {attempt_rows} -> {}",
             settings[0].name(),
             dir.display()
         );

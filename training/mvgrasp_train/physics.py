@@ -121,7 +121,7 @@ def symmetry(views, pixels, k):
     quality at a pixel does not depend on the angle, so nothing else
     changes."""
     size = views.shape[-1]
-    views, pixels = views.copy(), pixels.copy()
+    pixels = pixels.copy()
     if k & 1:
         views = views[:, :, ::-1]
         pixels[:, 0] = size - 1 - pixels[:, 0]
@@ -134,10 +134,13 @@ def symmetry(views, pixels, k):
     return np.ascontiguousarray(views), np.ascontiguousarray(pixels)
 
 
-def gaussian_kernel(sigma_px, radius=None):
+def gaussian_kernel(sigma_px):
     """The planner's quality smoothing (`DecodeConfig::smoothing_sigma_px`)
-    as a normalised 1-D kernel."""
-    radius = radius if radius is not None else max(1, int(np.ceil(3 * sigma_px)))
+    as a normalised 1-D kernel of radius ceil(3 sigma), as
+    `core::decode::smooth`; sigma <= 0 (no smoothing) gives `[1]`."""
+    if sigma_px <= 0:
+        return np.ones(1, dtype=np.float32)
+    radius = int(np.ceil(3 * sigma_px))
     x = np.arange(-radius, radius + 1, dtype=np.float64)
     k = np.exp(-0.5 * (x / sigma_px) ** 2)
     return (k / k.sum()).astype(np.float32)

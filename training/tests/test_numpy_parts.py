@@ -537,3 +537,4 @@ class PhysicsAttempts(unittest.TestCase):
         self.assertAlmostEqual(float(k.sum()), 1.0, places=6)
         self.assertEqual(int(np.argmax(k)), 3)
         np.testing.assert_allclose(k, k[::-1])
+        np.testing.assert_array_equal(physics.gaussian_kernel(0.0), [1.0])  # smoothing off, as in core
