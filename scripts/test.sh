@@ -64,7 +64,7 @@ PYTHONPATH="$traindeps" python3 -m unittest discover -s training/tests -v
 echo "== sim eval --attempt-views (physics outcomes to learn from), read back by the training package (numpy)"
 rm -rf target/eval-ci target/attempts-ci
 target/debug/sim eval --scenarios isolated,packed --episodes 1 --settings all:0.1 --snapshots 0 \
-    --out target/eval-ci --attempt-views target/attempts-ci
+    --out target/eval-ci --attempt-views target/attempts-ci --attempt-alternatives 2
 PYTHONPATH="$traindeps:training" python3 -m mvgrasp_train.physics target/attempts-ci
 echo "== scripts: compare_eval (standard library)"
 python3 -m unittest discover -s scripts/tests -v

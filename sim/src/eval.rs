@@ -684,13 +684,30 @@ impl GraspSource for InProcess<'_> {
 
 /// An in-process source that keeps every grasp it offers with the view it
 /// came from, frame by frame (`sim eval --attempt-views`): after an
-/// episode, [`Self::attempt_views`] gives each attempt the view the
-/// network read, so physics outcomes can be learned from.
+/// episode, [`ViewKeeping::rows`] gives each attempt the view the network read,
+/// so physics outcomes can be learned from.
 pub struct ViewKeeping<'a> {
     /// The planner and network.
     pub inner: InProcess<'a>,
-    /// Per call (frame): the poses offered and their views.
-    frames: Vec<Vec<(Isometry3<f64>, Vec<f32>)>>,
+    /// Per call (frame): the grasps offered, best first, with their views.
+    frames: Vec<Vec<(PlannedGrasp, Vec<f32>)>>,
+}
+
+/// One row of `sim eval --attempt-views`: an attempt with the view its
+/// grasp came from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AttemptRow<'a> {
+    /// The frame: attempts the episode had made before it.
+    pub step: usize,
+    /// The grasp's place in the planner's ranking on that frame (0 best).
+    pub rank: usize,
+    /// `false`: the episode's own attempt. `true`: a grasp ranked below
+    /// it, tried from the same state and forgotten ([`alternative_attempts`]).
+    pub alternative: bool,
+    /// What it came to.
+    pub attempt: Attempt,
+    /// The view as the network read it.
+    pub view: &'a [f32],
 }
 
 impl<'a> ViewKeeping<'a> {
@@ -702,22 +719,62 @@ impl<'a> ViewKeeping<'a> {
         }
     }
 
-    /// Each attempt of `episode` (planned by this source, from its first
-    /// call on) with the view its grasp came from; `None` where the tried
-    /// pose is none this source offered on that frame.
-    pub fn attempt_views(&self, episode: &Episode) -> Vec<Option<&[f32]>> {
-        episode
-            .attempts
-            .iter()
-            .enumerate()
-            .map(|(k, a)| {
-                self.frames
-                    .get(k)?
-                    .iter()
-                    .find(|(pose, _)| *pose == a.world_from_grasp)
-                    .map(|(_, view)| view.as_slice())
-            })
-            .collect()
+    /// The rows `sim eval --attempt-views` writes for `episode` (planned by
+    /// this source, from its first call on): each attempt with the view its
+    /// grasp came from (none where the tried pose is none this source
+    /// offered on that frame), followed, when
+    /// `alternatives` > 0, by up to that many grasps the planner ranked
+    /// below it on the same frame, tried from `scenes[step]` (the scene as
+    /// that frame showed it) and forgotten ([`alternative_attempts`]).
+    /// Fails when `alternatives` > 0 and a frame's scene is missing.
+    pub fn rows(
+        &self,
+        episode: &Episode,
+        scenes: &[Scene],
+        alternatives: usize,
+        config: &EpisodeConfig,
+    ) -> Result<Vec<AttemptRow<'_>>> {
+        if alternatives > 0 && scenes.len() < episode.attempts.len() {
+            return Err(Error::Invalid {
+                field: "attempt alternatives",
+                reason: format!("{} scenes for {} attempts", scenes.len(), episode.attempts.len()),
+            });
+        }
+        let mut rows = Vec::new();
+        for (step, a) in episode.attempts.iter().enumerate() {
+            let Some(offered) = self.frames.get(step) else {
+                continue;
+            };
+            let Some(rank) = offered
+                .iter()
+                .position(|(g, _)| g.world_from_grasp == a.world_from_grasp)
+            else {
+                continue;
+            };
+            rows.push(AttemptRow {
+                step,
+                rank,
+                alternative: false,
+                attempt: a.clone(),
+                view: &offered[rank].1,
+            });
+            if alternatives == 0 {
+                continue;
+            }
+            let grasps: Vec<PlannedGrasp> = offered.iter().map(|(g, _)| g.clone()).collect();
+            for (rank, attempt) in
+                alternative_attempts(&scenes[step], &grasps, &a.world_from_grasp, alternatives, config)
+            {
+                rows.push(AttemptRow {
+                    step,
+                    rank,
+                    alternative: true,
+                    attempt,
+                    view: &offered[rank].1,
+                });
+            }
+        }
+        Ok(rows)
     }
 }
 
@@ -728,16 +785,9 @@ impl GraspSource for ViewKeeping<'_> {
         workspace: Workspace,
         options: &PlanOptions,
     ) -> Result<Vec<PlannedGrasp>> {
-        let (grasps, views): (Vec<_>, Vec<_>) = self
-            .inner
-            .grasps_with_views(frame, workspace, options)?
-            .into_iter()
-            .map(|(g, view)| {
-                let pose = g.world_from_grasp;
-                (g, (pose, view))
-            })
-            .unzip();
-        self.frames.push(views);
+        let offered = self.inner.grasps_with_views(frame, workspace, options)?;
+        let grasps = offered.iter().map(|(g, _)| g.clone()).collect();
+        self.frames.push(offered);
         Ok(grasps)
     }
 }
@@ -952,61 +1002,28 @@ pub fn run_episode_with(
             episode.last_plan_ms = Some(plan_ms);
             break;
         };
-        let mut label = None;
-        let mut torque_nm = None;
-        let mut tilt_deg = None;
-        let (failure, collision) = match scene.object_at(&grasp.object_centroid, 0.01) {
-            None => (Some(Failure::ObjectMissed), None),
-            Some(target) => {
-                let torque = weight_torque_nm(&scene.objects[target], &pose_of(&grasp.world_from_grasp));
-                tilt_deg = Some(object_tilt_deg(&scene.objects[target]));
-                let (tried, poses) = try_grasp(&scene, target, &grasp, config);
-                let (failure, collision) = match tried {
-                    Tried::Collided(site) => (Some(Failure::CollisionOnApproach), Some(site)),
-                    Tried::Trial(failure, name) => {
-                        label = Some((name, scene.objects[target].model.family));
-                        torque_nm = Some(torque);
-                        (failure, None)
-                    }
-                };
-                // The scene as the trial left it (a pushed neighbour stays
-                // pushed, a dropped object lies where it fell), the target
-                // gone if it reached the basket; then what still moves or
-                // leaned on the target comes to rest. Off the table is gone.
-                if let Some(poses) = poses {
-                    for (o, pose) in scene.objects.iter_mut().zip(poses) {
-                        o.world_from_object = pose;
-                        o.world_aabb = o.model.aabb_at(&pose);
-                    }
-                    if failure.is_none() {
-                        scene.objects.remove(target);
-                        episode.removed += 1;
-                    }
-                    episode.fell_off += settle(&mut scene, &SettleConfig::default());
-                }
-                (failure, collision)
+        let (attempt, after) = attempt_on(&scene, &grasp, plan_ms, config);
+        // The scene as the trial left it (a pushed neighbour stays pushed, a
+        // dropped object lies where it fell), the target gone if it reached
+        // the basket; then what still moves or leaned on the target comes to
+        // rest. Off the table is gone.
+        if let Some((target, poses)) = after {
+            for (o, pose) in scene.objects.iter_mut().zip(poses) {
+                o.world_from_object = pose;
+                o.world_aabb = o.model.aabb_at(&pose);
             }
-        };
-        if failure.is_some() {
+            if attempt.failure.is_none() {
+                scene.objects.remove(target);
+                episode.removed += 1;
+            }
+            episode.fell_off += settle(&mut scene, &SettleConfig::default());
+        }
+        if attempt.failure.is_some() {
             refused.push(grasp.world_from_grasp);
         } else {
             refused.clear();
         }
-        episode.attempts.push(Attempt {
-            plan_ms,
-            world_from_grasp: grasp.world_from_grasp,
-            width_m: grasp.width_m,
-            quality: grasp.quality,
-            failure,
-            collision,
-            label,
-            view: grasp.view,
-            pixel: grasp.pixel,
-            repairs: grasp.repairs,
-            centroid_lever_m: horizontal_lever_m(&grasp.world_from_grasp, &grasp.object_centroid),
-            torque_nm,
-            tilt_deg,
-        });
+        episode.attempts.push(attempt);
     }
     Ok(episode)
 }
@@ -1017,13 +1034,78 @@ pub fn run_episode_with(
 /// exactly as an episode's attempt would end. `sim eval --judge` tries
 /// other models' best grasps on an episode's frames with it.
 pub fn grasp_outcome(scene: &Scene, grasp: &PlannedGrasp, config: &EpisodeConfig) -> Option<Failure> {
-    let Some(target) = scene.object_at(&grasp.object_centroid, 0.01) else {
-        return Some(Failure::ObjectMissed);
+    attempt_on(scene, grasp, 0.0, config).0.failure
+}
+
+/// The attempt `grasp` (planned in `plan_ms`) makes on `scene` as it
+/// stands, as an episode records it, and for a physics trial the target
+/// and every object's pose as the trial left them. `scene` is not changed.
+fn attempt_on(
+    scene: &Scene,
+    grasp: &PlannedGrasp,
+    plan_ms: f64,
+    config: &EpisodeConfig,
+) -> (Attempt, Option<(usize, Vec<Pose>)>) {
+    let mut attempt = Attempt {
+        plan_ms,
+        world_from_grasp: grasp.world_from_grasp,
+        width_m: grasp.width_m,
+        quality: grasp.quality,
+        failure: Some(Failure::ObjectMissed),
+        collision: None,
+        label: None,
+        view: grasp.view,
+        pixel: grasp.pixel,
+        repairs: grasp.repairs,
+        centroid_lever_m: horizontal_lever_m(&grasp.world_from_grasp, &grasp.object_centroid),
+        torque_nm: None,
+        tilt_deg: None,
     };
-    match try_grasp(scene, target, grasp, config).0 {
-        Tried::Collided(_) => Some(Failure::CollisionOnApproach),
-        Tried::Trial(failure, _) => failure,
+    let Some(target) = scene.object_at(&grasp.object_centroid, 0.01) else {
+        return (attempt, None);
+    };
+    let object = &scene.objects[target];
+    attempt.tilt_deg = Some(object_tilt_deg(object));
+    match try_grasp(scene, target, grasp, config) {
+        (Tried::Collided(site), _) => {
+            attempt.failure = Some(Failure::CollisionOnApproach);
+            attempt.collision = Some(site);
+            (attempt, None)
+        }
+        (Tried::Trial(failure, name), poses) => {
+            attempt.failure = failure;
+            attempt.label = Some((name, object.model.family));
+            attempt.torque_nm = Some(weight_torque_nm(object, &pose_of(&grasp.world_from_grasp)));
+            (attempt, poses.map(|p| (target, p)))
+        }
     }
+}
+
+/// Up to `count` of the grasps `offered` on a frame that the planner ranked
+/// below the one the episode tried there (`tried`; those above it had
+/// failed already on the unchanged scene), best first, each tried from
+/// `scene` as it stood and then forgotten: what the episode would have
+/// recorded had the planner ranked it first (`sim eval
+/// --attempt-alternatives`). Each comes with its place in `offered`; none
+/// when `tried` is not among them.
+pub fn alternative_attempts(
+    scene: &Scene,
+    offered: &[PlannedGrasp],
+    tried: &Isometry3<f64>,
+    count: usize,
+    config: &EpisodeConfig,
+) -> Vec<(usize, Attempt)> {
+    let Some(at) = offered.iter().position(|g| g.world_from_grasp == *tried) else {
+        return Vec::new();
+    };
+    offered
+        .iter()
+        .enumerate()
+        .skip(at + 1)
+        .filter(|(_, g)| !same_grasp(tried, &g.world_from_grasp))
+        .take(count)
+        .map(|(rank, g)| (rank, attempt_on(scene, g, 0.0, config).0))
+        .collect()
 }
 
 /// One model's best grasps tried on frames it did not choose
@@ -1240,42 +1322,39 @@ pub fn episode_record(e: &Episode, setting: &str) -> serde_json::Value {
     })
 }
 
-/// Writes the attempts of `episode` whose view is known (`views`, one per
-/// attempt: [`ViewKeeping::attempt_views`]) into `dir`, for learning from
-/// physics outcomes (`sim eval --attempt-views`):
+/// Writes `rows` of one episode ([`ViewKeeping::rows`]) into `dir`, for
+/// learning from physics outcomes (`sim eval --attempt-views`):
 /// `attempts_SCENARIO_SEED.npy`, float32 `[n, size_px, size_px]`, each view
 /// as the network read it, and `attempts_SCENARIO_SEED.json`, one record
-/// per row: the attempt's `step` (attempts before it), `view`, `pixel`
-/// `[u, v]` (the quality peak the grasp came from), predicted `quality`,
-/// `width_mm`, `outcome` ("ok" or why not: [`Attempt::outcome_name`]),
-/// analytic `label` and `family` (physics trials only), the planner's
-/// `repairs` and the object's `tilt_deg`. Returns the rows written.
+/// per row: the frame's `step` (attempts before it), the grasp's `rank`
+/// among those the planner offered there (0 best), `alternative` (false for
+/// the episode's own attempt, true for one ranked below it), `view`, `pixel` `[u, v]` (the quality peak the grasp came from),
+/// predicted `quality`, `width_mm`, `outcome` ("ok" or why not:
+/// [`Attempt::outcome_name`]), analytic `label` and `family` (physics
+/// trials only), the planner's `repairs` and the object's `tilt_deg`.
+/// Returns the rows written.
 pub fn write_attempt_views(
     dir: &Path,
-    episode: &Episode,
-    views: &[Option<&[f32]>],
+    (scenario, seed): (Scenario, u64),
+    rows: &[AttemptRow],
     size_px: usize,
 ) -> Result<usize> {
-    if views.len() != episode.attempts.len() {
-        return Err(Error::Invalid {
-            field: "attempt views",
-            reason: format!("{} views for {} attempts", views.len(), episode.attempts.len()),
-        });
-    }
-    let mut data = Vec::new();
-    let mut records = Vec::new();
-    for (step, (a, view)) in episode.attempts.iter().zip(views).enumerate() {
-        let Some(view) = view else { continue };
-        if view.len() != size_px * size_px {
+    let mut data = Vec::with_capacity(rows.len() * size_px * size_px);
+    let mut records = Vec::with_capacity(rows.len());
+    for row in rows {
+        if row.view.len() != size_px * size_px {
             return Err(Error::Invalid {
                 field: "attempt views",
-                reason: format!("a view of {} pixels, not {size_px} x {size_px}", view.len()),
+                reason: format!("a view of {} pixels, not {size_px} x {size_px}", row.view.len()),
             });
         }
-        data.extend_from_slice(view);
+        data.extend_from_slice(row.view);
+        let a = &row.attempt;
         let (label, family) = a.label.map_or((None, None), |(l, f)| (Some(l), Some(f.name())));
         records.push(serde_json::json!({
-            "step": step,
+            "step": row.step,
+            "rank": row.rank,
+            "alternative": row.alternative,
             "view": a.view.name(),
             "pixel": a.pixel,
             "quality": a.quality,
@@ -1288,7 +1367,7 @@ pub fn write_attempt_views(
         }));
     }
     std::fs::create_dir_all(dir).map_err(|e| crate::dataset::file_error(dir, e))?;
-    let stem = format!("attempts_{}_{}", episode.scenario.name(), episode.seed);
+    let stem = format!("attempts_{}_{}", scenario.name(), seed);
     crate::dataset::write_npy(
         &dir.join(format!("{stem}.npy")),
         &[records.len(), size_px, size_px],

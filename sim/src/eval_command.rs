@@ -16,7 +16,7 @@ use mvgrasp_sim::eval::{
     markdown_table, plan_options, provenance_table, run_episode, run_episode_with, write_attempt_views,
 };
 use mvgrasp_sim::files::{DrawnGrasp, write_grasp_snapshot};
-use mvgrasp_sim::scene::Scenario;
+use mvgrasp_sim::scene::{Scenario, Scene};
 use mvgrasp_sim::targets::TargetConfig;
 use rayon::prelude::*;
 
@@ -97,6 +97,10 @@ pub struct EvalRun<'a> {
     /// Write the first setting's attempts with the views their grasps came
     /// from into this folder (`--attempt-views`; in process only).
     pub attempt_views: Option<PathBuf>,
+    /// With `attempt_views`: per frame, up to this many grasps ranked below
+    /// the tried one, tried from the same state and written too
+    /// (`--attempt-alternatives`; 0: none).
+    pub attempt_alternatives: usize,
 }
 
 /// `--label-frames DIR --label-every N`: the first setting's episode frames,
@@ -122,6 +126,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         label_frames,
         judge,
         attempt_views,
+        attempt_alternatives,
     } = run;
     anyhow::ensure!(!settings.is_empty(), "--settings: at least one");
     // The contract (and the model's name) from the model, or the server.
@@ -253,23 +258,29 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                     Worker::Remote(remote) => remote.as_mut(),
                 };
                 let context = || format!("{} seed {seed} {}", scenario.name(), settings[k].name());
-                // The episode's attempts with their views (--attempt-views): rows written.
-                let write_kept =
-                    |keeping: &Option<ViewKeeping>, episode: &Episode| match (keeping, attempt_views) {
-                        (Some(keeping), Some(dir)) => write_attempt_views(
-                            dir,
-                            episode,
-                            &keeping.attempt_views(episode),
-                            contract.input_size_px,
-                        ),
-                        _ => Ok(0),
-                    };
+                // The episode's attempts with their views (--attempt-views),
+                // and the alternatives on the frames' scenes: rows written.
+                let write_kept = |keeping: &Option<ViewKeeping>, episode: &Episode, scenes: &[Scene]| match (
+                    keeping,
+                    attempt_views,
+                ) {
+                    (Some(keeping), Some(dir)) => write_attempt_views(
+                        dir,
+                        (episode.scenario, episode.seed),
+                        &keeping.rows(episode, scenes, *attempt_alternatives, config)?,
+                        contract.input_size_px,
+                    ),
+                    _ => Ok(0),
+                };
+                // The scene at every frame, for the alternatives.
+                let keep_scenes = k == 0 && attempt_views.is_some() && *attempt_alternatives > 0;
+                let mut scenes: Vec<Scene> = Vec::new();
                 let mut tallies = vec![JudgeTally::default(); judges.len()];
                 let mut judged_frames = Vec::new();
-                if k != 0 || (labeller.is_none() && judges.is_empty()) {
+                if k != 0 || (labeller.is_none() && judges.is_empty() && !keep_scenes) {
                     let episode =
                         run_episode(scenario, seed, &settings[k], source, config).with_context(context)?;
-                    let written = write_kept(&keeping, &episode).with_context(context)?;
+                    let written = write_kept(&keeping, &episode, &[]).with_context(context)?;
                     bar.inc(1);
                     return Ok((k, episode, (tallies, judged_frames, written)));
                 }
@@ -286,6 +297,9 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                     source,
                     config,
                     &mut |step, scene, frame| {
+                        if keep_scenes {
+                            scenes.push(scene.clone());
+                        }
                         if let Some(labeller) = &labeller
                             && labeller.wants(step)
                         {
@@ -324,7 +338,7 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                         .write_episode(scenario, seed, &views)
                         .with_context(context)?;
                 }
-                let written = write_kept(&keeping, &episode).with_context(context)?;
+                let written = write_kept(&keeping, &episode, &scenes).with_context(context)?;
                 bar.inc(1);
                 Ok((k, episode, (tallies, judged_frames, written)))
             },
@@ -520,7 +534,8 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
     println!("wrote {}/eval.md and eval.json", out.display());
     if let Some(dir) = attempt_views {
         let manifest = serde_json::json!({
-            "format": "mvgrasp-attempt-views-1",
+            "format": "mvgrasp-attempt-views-2",
+            "alternatives": attempt_alternatives,
             "model": model_name, "model_version": contract.model_version,
             "contract": {
                 "input_size_px": contract.input_size_px, "pixel_size_m": contract.pixel_size_m,

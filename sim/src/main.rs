@@ -189,6 +189,12 @@ enum Command {
         /// outcomes to learn from (`train --physics`; in-process planning only).
         #[arg(long, conflicts_with = "server")]
         attempt_views: Option<PathBuf>,
+        /// With --attempt-views: on every frame, also try up to this many of
+        /// the grasps the planner ranked below the one the episode tried,
+        /// each from the same state and then forgotten, and write them too
+        /// (rows with `alternative` set to their rank).
+        #[arg(long, default_value_t = 0, requires = "attempt_views")]
+        attempt_alternatives: usize,
     },
     /// Render one scene: depth.png + camera.json (what `mvgrasp plan` reads),
     /// labels.png and preview.png.
@@ -289,6 +295,7 @@ fn main() -> anyhow::Result<()> {
             label_every,
             judge,
             attempt_views,
+            attempt_alternatives,
         } => {
             use_threads(threads)?;
             let scenarios = scenarios_of(&scenarios)?;
@@ -334,6 +341,7 @@ fn main() -> anyhow::Result<()> {
                 }),
                 judge,
                 attempt_views,
+                attempt_alternatives,
             })?;
         }
         Command::PhysicsAgreement {

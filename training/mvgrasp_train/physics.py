@@ -35,7 +35,9 @@ import numpy as np
 HELD = "ok"
 # Outcome prefixes: a collision's outcome names what was hit, with which part, where.
 NETWORK_FAILURES = ("slip during lift", "width too small", "collision on approach: the object")
-FORMAT = "mvgrasp-attempt-views-1"
+# Format 2 adds each row's `rank` on its frame and rows for grasps ranked below the
+# tried one (`alternative` true).
+FORMATS = ("mvgrasp-attempt-views-1", "mvgrasp-attempt-views-2")
 
 
 @dataclass
@@ -52,10 +54,11 @@ class Attempts:
         return len(self.held)
 
 
-def load(dirs, failures=NETWORK_FAILURES):
+def load(dirs, failures=NETWORK_FAILURES, alternatives=True):
     """The attempts of one or more `--attempt-views` folders (a list or a
     comma-separated string) that held or whose outcome starts with one of
-    `failures`.
+    `failures`; with `alternatives` False, the episodes' own attempts only
+    (not the grasps ranked below them, `sim eval --attempt-alternatives`).
     Raises ValueError for a folder that is not one, rows that disagree with
     their views, pixels outside the view, or folders with different
     contracts."""
@@ -68,8 +71,8 @@ def load(dirs, failures=NETWORK_FAILURES):
             raise ValueError(f"{d}: no manifest.json (not a sim eval --attempt-views folder)")
         with open(path) as f:
             manifest = json.load(f)
-        if manifest.get("format") != FORMAT:
-            raise ValueError(f"{d}: format {manifest.get('format')!r}, not {FORMAT!r}")
+        if manifest.get("format") not in FORMATS:
+            raise ValueError(f"{d}: format {manifest.get('format')!r}, not one of {FORMATS}")
         theirs = manifest["contract"]
         if contract is None:
             contract = theirs
@@ -87,6 +90,8 @@ def load(dirs, failures=NETWORK_FAILURES):
                 if not (0 <= u < size and 0 <= vv < size):
                     raise ValueError(f"{npy}: row {k} pixel {r['pixel']} outside the {size} px view")
                 if r["outcome"] != HELD and not any(r["outcome"].startswith(f) for f in failures):
+                    continue
+                if not alternatives and r.get("alternative"):
                     continue
                 views.append(v[k])
                 pixels.append((u, vv))
@@ -153,7 +158,8 @@ def summary(attempts):
         kind = r["outcome"].split(" (")[0]  # a collision by what was hit, not with which part or where
         outcomes[kind] = outcomes.get(kind, 0) + 1
     held = float(attempts.held.mean()) if len(attempts) else float("nan")
-    return f"{len(attempts)} attempts, {100 * held:.1f}% held; " + ", ".join(
+    ranked = sum(bool(r.get("alternative")) for r in attempts.records)
+    return f"{len(attempts)} attempts ({ranked} of them alternatives), {100 * held:.1f}% held; " + ", ".join(
         f"{k} {v}" for k, v in sorted(outcomes.items()))
 
 

@@ -25,7 +25,9 @@ adds `--physics-weight` times the squared error between the network's
 quality at each tried grasp's pixel, smoothed as the planner smooths it
 (`--physics-sigma-px`), and the physics outcome (1 held, 0 slipped or
 opened too narrow), on a batch of attempts under a random symmetry of
-the square per step (`physics_loss`). `--label-weight 0` drops the label
+the square per step (`physics_loss`); with the grasps ranked below the tried
+ones (`sim eval --attempt-alternatives`) unless `--physics-own-only`.
+`--label-weight 0` drops the label
 loss: with `--teacher` the model it starts from, the network then only
 moves where physics says its picks fail or hold.
 `--architecture skip` or `wide` may start from a `narrow` run (`start_from`).
@@ -239,6 +241,11 @@ def main(argv=None):
     p.add_argument("--physics", metavar="DIR[,DIR]",
                    help="also learn physics outcomes of tried grasps (sim eval --attempt-views folders)")
     p.add_argument("--physics-weight", type=float, default=1.0, help="weight of physics_loss")
+    p.add_argument("--physics-failures", metavar="PREFIX[,PREFIX]", default=",".join(physics.NETWORK_FAILURES),
+                   help="outcomes (name prefixes) learned as failures; other failures are left out "
+                        "(default: the network's own, physics.NETWORK_FAILURES)")
+    p.add_argument("--physics-own-only", action="store_true",
+                   help="only the episodes' own attempts, not the alternatives ranked below them")
     p.add_argument("--physics-sigma-px", type=float, default=1.0,
                    help="the planner's quality smoothing (DecodeConfig::smoothing_sigma_px)")
     p.add_argument("--label-weight", type=float, default=1.0,
@@ -289,7 +296,8 @@ def main(argv=None):
     attempts = None
     if args.physics:
         try:
-            attempts = physics.load(args.physics)
+            failures = tuple(f.strip() for f in args.physics_failures.split(",") if f.strip())
+            attempts = physics.load(args.physics, failures=failures, alternatives=not args.physics_own_only)
         except ValueError as e:
             raise SystemExit(f"--physics: {e}")
         problems = physics.check_contract(attempts, ds.contract)

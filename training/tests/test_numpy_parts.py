@@ -453,18 +453,24 @@ if __name__ == "__main__":
     unittest.main()
 
 
-def write_attempts(root, rows, l=8, contract=None, stem="attempts_pile_5"):
+def write_attempts(root, rows, l=8, contract=None, stem="attempts_pile_5", fmt="mvgrasp-attempt-views-2",
+                   alternatives=None):
     """A `sim eval --attempt-views` folder: one episode whose views are
-    `k + pixel index` so each row can be told apart."""
+    filled with the row's index so each row can be told apart;
+    `alternatives` gives each row's `alternative` (format 2)."""
     os.makedirs(root, exist_ok=True)
     views = np.stack([np.full((l, l), float(k), np.float32) for k in range(len(rows))]) if rows else \
         np.zeros((0, l, l), np.float32)
     np.save(os.path.join(root, f"{stem}.npy"), views)
     with open(os.path.join(root, f"{stem}.json"), "w") as f:
-        json.dump([{"step": k, "view": "top", "pixel": list(p), "quality": 0.5, "outcome": o}
-                   for k, (p, o) in enumerate(rows)], f)
+        records = [{"step": k, "view": "top", "pixel": list(p), "quality": 0.5, "outcome": o}
+                   for k, (p, o) in enumerate(rows)]
+        if alternatives is not None:
+            for r, alt in zip(records, alternatives):
+                r["alternative"] = alt
+        json.dump(records, f)
     with open(os.path.join(root, "manifest.json"), "w") as f:
-        json.dump({"format": physics.FORMAT,
+        json.dump({"format": fmt,
                    "contract": contract or {"input_size_px": l, "pixel_size_m": 0.0033333, "normalisation": "cube-v1"}},
                   f)
 
@@ -483,7 +489,7 @@ class PhysicsAttempts(unittest.TestCase):
             np.testing.assert_array_equal(a.pixels, [[1, 2], [3, 4], [0, 7], [2, 2]])
             # Each row keeps its own view (row k is filled with k).
             np.testing.assert_array_equal(a.views[:, 0, 0], [0.0, 1.0, 3.0, 5.0])
-            self.assertIn("4 attempts, 25.0% held", physics.summary(a))
+            self.assertIn("4 attempts (0 of them alternatives), 25.0% held", physics.summary(a))
             self.assertIn("collision on approach: the object 1", physics.summary(a))
             slips_only = physics.load(d, failures=("slip during lift",))
             np.testing.assert_array_equal(slips_only.held, [1.0, 0.0])
@@ -516,6 +522,22 @@ class PhysicsAttempts(unittest.TestCase):
                 physics.load(f"{d}/c,{d}/e")
             two = physics.load(f"{d}/c,{d}/c")
             self.assertEqual(len(two), 8)
+            write_attempts(os.path.join(d, "f"), self.ROWS, fmt="mvgrasp-attempt-views-9")
+            with self.assertRaisesRegex(ValueError, "format 'mvgrasp-attempt-views-9'"):
+                physics.load(os.path.join(d, "f"))
+
+    def test_alternatives_are_read_unless_left_out_and_format_1_still_reads(self):
+        with tempfile.TemporaryDirectory() as d:
+            # Rows 1 and 3 are grasps ranked below the tried ones.
+            write_attempts(d, self.ROWS, alternatives=[False, True, False, True, False, False])
+            every = physics.load(d)
+            self.assertEqual(len(every), 4)
+            self.assertIn("4 attempts (2 of them alternatives)", physics.summary(every))
+            own = physics.load(d, alternatives=False)
+            np.testing.assert_array_equal(own.views[:, 0, 0], [0.0, 5.0])
+            np.testing.assert_array_equal(own.held, [1.0, 0.0])
+            write_attempts(os.path.join(d, "old"), self.ROWS, fmt="mvgrasp-attempt-views-1")
+            self.assertEqual(len(physics.load(os.path.join(d, "old"), alternatives=False)), 4)
 
     def test_symmetries_move_the_pixel_with_the_view(self):
         rng = np.random.default_rng(2)

@@ -1358,11 +1358,14 @@ mod eval {
         };
         assert_eq!(outcomes(&kept), outcomes(&plain));
         assert!(kept.attempts.len() >= 3, "{} attempts", kept.attempts.len());
-        let views: Vec<Vec<f32>> = keeping
-            .attempt_views(&kept)
-            .into_iter()
-            .map(|v| v.expect("every attempt has its view").to_vec())
-            .collect();
+        let rows = keeping.rows(&kept, &[], 0, &config).unwrap();
+        assert_eq!(rows.len(), kept.attempts.len(), "every attempt has its view");
+        assert!(
+            rows.iter()
+                .enumerate()
+                .all(|(k, r)| r.step == k && !r.alternative)
+        );
+        let views: Vec<Vec<f32>> = rows.iter().map(|r| r.view.to_vec()).collect();
         let mut again = MomentsNet::default();
         let q = contract.channel_index(Channel::Quality);
         for (a, view) in kept.attempts.iter().zip(&views) {
@@ -1390,16 +1393,17 @@ mod eval {
                 a.quality
             );
         }
-        let refs: Vec<Option<&[f32]>> = views.iter().map(|v| Some(v.as_slice())).collect();
+        assert!(
+            keeping.rows(&kept, &[], 1, &config).is_err(),
+            "alternatives need the frames' scenes"
+        );
         let out = std::env::temp_dir().join(format!("mvgrasp-attempt-views-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&out);
-        assert!(
-            write_attempt_views(&out, &kept, &refs[1..], l).is_err(),
-            "one view short"
-        );
-        let mut skipped = refs.clone();
-        skipped[0] = None;
-        let rows = write_attempt_views(&out, &kept, &skipped, l).unwrap();
+        let mut short = rows[1].clone();
+        short.view = &short.view[1..];
+        let err = write_attempt_views(&out, (scenario, seed), &[short], l).unwrap_err();
+        assert!(err.to_string().contains(&format!("not {l} x {l}")), "{err}");
+        let rows = write_attempt_views(&out, (scenario, seed), &rows[1..], l).unwrap();
         assert_eq!(rows, kept.attempts.len() - 1);
         let stem = out.join(format!("attempts_pile_{seed}"));
         let records: Vec<serde_json::Value> =
@@ -1407,6 +1411,7 @@ mod eval {
         assert_eq!(records.len(), rows);
         for (r, (step, a)) in records.iter().zip(kept.attempts.iter().enumerate().skip(1)) {
             assert_eq!(r["step"], step);
+            assert_eq!(r["alternative"], false);
             assert_eq!(r["pixel"], serde_json::json!(a.pixel));
             assert_eq!(r["outcome"], a.outcome_name());
             assert_eq!(r["view"], a.view.name());
@@ -1426,6 +1431,134 @@ mod eval {
             .collect();
         assert_eq!(back, views[1]);
         std::fs::remove_dir_all(&out).unwrap();
+    }
+
+    /// The planner's grasps, with the one of rank `rank` moved first on the
+    /// first frame only.
+    struct RankedFirst<'a> {
+        inner: InProcess<'a>,
+        rank: usize,
+        calls: usize,
+    }
+
+    impl GraspSource for RankedFirst<'_> {
+        fn grasps(
+            &mut self,
+            frame: &Frame,
+            workspace: mvgrasp_core::Workspace,
+            options: &mvgrasp_core::PlanOptions,
+        ) -> mvgrasp_sim::Result<Vec<PlannedGrasp>> {
+            let mut grasps = self.inner.grasps(frame, workspace, options)?;
+            if self.calls == 0 {
+                let moved = grasps.remove(self.rank);
+                grasps.insert(0, moved);
+            }
+            self.calls += 1;
+            Ok(grasps)
+        }
+    }
+
+    /// `sim eval --attempt-alternatives`: the grasps ranked below each tried
+    /// one are tried from the frame's scene without changing the episode,
+    /// and each comes to what the episode records when the planner ranks it
+    /// first.
+    #[test]
+    fn alternatives_end_as_the_episode_would_with_them_first() {
+        use mvgrasp_sim::eval::ViewKeeping;
+
+        let mut net = MomentsNet::default();
+        let contract = net.contract().clone();
+        let l = contract.input_size_px;
+        let planner = Planner::new(PlannerConfig::default(), contract).unwrap();
+        let config = EpisodeConfig::default();
+        let setting = Setting::parse("all:0.1").unwrap();
+        let (scenario, seed) = (Scenario::Pile, 900_000);
+        let plain = run_episode(
+            scenario,
+            seed,
+            &setting,
+            &mut InProcess {
+                planner: &planner,
+                net: &mut net,
+            },
+            &config,
+        )
+        .unwrap();
+        let mut keeping = ViewKeeping::new(InProcess {
+            planner: &planner,
+            net: &mut net,
+        });
+        let mut scenes = Vec::new();
+        let kept = mvgrasp_sim::eval::run_episode_with(
+            scenario,
+            seed,
+            &setting,
+            &mut keeping,
+            &config,
+            &mut |_, scene, _| scenes.push(scene.clone()),
+        )
+        .unwrap();
+        let outcome = |a: &Attempt| {
+            (
+                a.failure,
+                a.collision,
+                a.label,
+                a.quality,
+                a.pixel,
+                a.world_from_grasp,
+            )
+        };
+        assert_eq!(
+            kept.attempts.iter().map(outcome).collect::<Vec<_>>(),
+            plain.attempts.iter().map(outcome).collect::<Vec<_>>()
+        );
+        let rows = keeping.rows(&kept, &scenes, 2, &config).unwrap();
+        let own: Vec<_> = rows.iter().filter(|r| !r.alternative).collect();
+        assert_eq!(own.len(), kept.attempts.len());
+        let alternatives: Vec<_> = rows.iter().filter(|r| r.alternative).collect();
+        assert!(alternatives.len() >= 4, "{} alternatives", alternatives.len());
+        for r in &alternatives {
+            let tried = own.iter().find(|o| o.step == r.step).unwrap();
+            assert!(!same_grasp(
+                &tried.attempt.world_from_grasp,
+                &r.attempt.world_from_grasp
+            ));
+            assert!(r.rank > tried.rank, "ranked below the tried grasp");
+            assert_eq!(r.view.len(), l * l);
+        }
+        assert!(
+            (0..kept.attempts.len()).all(|step| rows
+                .iter()
+                .filter(|r| r.step == step && r.alternative)
+                .count()
+                <= 2),
+            "at most 2 per frame"
+        );
+        assert!(rows.windows(2).all(|w| w[0].step <= w[1].step), "in frame order");
+        // The first frame's alternatives, ranked first: the episode's first
+        // attempt ends exactly as the alternative did.
+        let first: Vec<_> = alternatives.iter().filter(|r| r.step == 0).collect();
+        assert!(!first.is_empty());
+        let mut net = MomentsNet::default();
+        for r in first {
+            let rank = r.rank;
+            let forced = run_episode(
+                scenario,
+                seed,
+                &setting,
+                &mut RankedFirst {
+                    inner: InProcess {
+                        planner: &planner,
+                        net: &mut net,
+                    },
+                    rank,
+                    calls: 0,
+                },
+                &config,
+            )
+            .unwrap();
+            assert_eq!(outcome(&forced.attempts[0]), outcome(&r.attempt), "rank {rank}");
+        }
     }
 
     /// `sim eval --label-frames`: every frame the planner gets is shown to
