@@ -13,7 +13,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from mvgrasp_train import augment, dataset, evaluate_onnx, metric, physics, refusals, repeatability  # noqa: E402
+from mvgrasp_train import augment, dataset, evaluate_onnx, metric, physics, physics_score, refusals, repeatability  # noqa: E402
 
 
 def line_view(l, u0, v0, phi, half):
@@ -560,3 +560,39 @@ class PhysicsAttempts(unittest.TestCase):
         self.assertEqual(int(np.argmax(k)), 3)
         np.testing.assert_allclose(k, k[::-1])
         np.testing.assert_array_equal(physics.gaussian_kernel(0.0), [1.0])  # smoothing off, as in core
+
+
+class PhysicsScore(unittest.TestCase):
+    def test_auc_counts_pairs_held_above_failed_ties_half(self):
+        self.assertEqual(physics_score.auc([0.1, 0.4, 0.35, 0.8], [0, 0, 1, 1]), 0.75)
+        self.assertEqual(physics_score.auc([0.5, 0.5], [1, 0]), 0.5)
+        self.assertEqual(physics_score.auc([0.9, 0.2], [1, 0]), 1.0)
+        self.assertTrue(np.isnan(physics_score.auc([0.3, 0.4], [1, 1])))
+        rng = np.random.default_rng(5)
+        scores = rng.integers(0, 6, 200) / 5.0  # many ties
+        held = (rng.uniform(size=200) < 0.3 + 0.5 * scores).astype(np.float32)
+        pairs = [(1.0 if h > f else 0.5 if h == f else 0.0)
+                 for h in scores[held > 0.5] for f in scores[held < 0.5]]
+        self.assertAlmostEqual(physics_score.auc(scores, held), float(np.mean(pairs)), places=12)
+
+    def test_brier_and_calibration_bins(self):
+        scores, held = [0.1, 0.3, 0.85, 0.95, 1.0], [0, 1, 1, 1, 0]
+        self.assertAlmostEqual(physics_score.brier(scores, held), (0.01 + 0.49 + 0.0225 + 0.0025 + 1.0) / 5)
+        bins = physics_score.calibration(scores, held, edges=(0.0, 0.5, 0.9, 1.0))
+        self.assertEqual([b["attempts"] for b in bins], [2, 1, 2])  # 1.0 falls in the last, closed bin
+        self.assertAlmostEqual(bins[0]["mean_quality"], 0.2)
+        self.assertEqual([b["held"] for b in bins], [0.5, 1.0, 0.5])
+        empty = physics_score.calibration(scores, held, edges=(0.0, 0.05, 1.0))[0]
+        self.assertEqual(empty["attempts"], 0)
+        self.assertTrue(np.isnan(empty["held"]))
+
+    def test_the_model_contract_is_read_from_metadata(self):
+        meta = {"mvgrasp.input_size_px": "72", "mvgrasp.pixel_size_m": "0.003333333",
+                "mvgrasp.normalisation": "cube-v1", "mvgrasp.outputs": "cos2phi,quality,sin2phi,width"}
+        contract, channel = physics_score.model_contract(meta)
+        self.assertEqual(contract, {"input_size_px": 72, "pixel_size_m": 0.003333333, "normalisation": "cube-v1"})
+        self.assertEqual(channel, 1)
+        with self.assertRaisesRegex(ValueError, "no quality"):
+            physics_score.model_contract({**meta, "mvgrasp.outputs": "cos2phi,sin2phi,width"})
+        with self.assertRaisesRegex(ValueError, "mvgrasp.normalisation"):
+            physics_score.model_contract({k: v for k, v in meta.items() if k != "mvgrasp.normalisation"})

@@ -84,3 +84,56 @@ class FlipWrapTest(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+@unittest.skipIf(MISSING, REASON)
+class PhysicsScoreTest(unittest.TestCase):
+    """`physics_score.quality_at` reads the shipped model's quality at each
+    attempt's pixel smoothed as the planner smooths it (checked against a
+    plain clamped 2-D sum), whatever the batch, and refuses attempts of
+    another contract."""
+
+    def attempts(self, d, size=72, n=5):
+        from mvgrasp_train import physics
+        from test_numpy_parts import write_attempts
+
+        rng = np.random.default_rng(11)
+        rows = [((int(rng.integers(0, size)), int(rng.integers(0, size))), "ok" if k % 2 else "slip during lift")
+                for k in range(n)]
+        rows[0] = ((0, size - 1), "ok")  # a corner: the clamped edge counts
+        write_attempts(d, rows, l=size, contract={"input_size_px": size, "pixel_size_m": 0.003333333,
+                                                  "normalisation": "cube-v1"})
+        a = physics.load(d)
+        a.views = rng.uniform(0.0, 1.0, a.views.shape).astype(np.float32)
+        return a
+
+    def test_quality_at_the_pixel_smoothed_as_the_planner_does(self):
+        import tempfile
+
+        from mvgrasp_train import physics, physics_score
+
+        with tempfile.TemporaryDirectory() as d:
+            a = self.attempts(d)
+            got = physics_score.quality_at(MODEL, a, sigma_px=1.0)
+            np.testing.assert_allclose(physics_score.quality_at(MODEL, a, sigma_px=1.0, batch=2), got, atol=1e-6)
+            session = onnxruntime.InferenceSession(MODEL, providers=["CPUExecutionProvider"])
+            q = session.run(["maps"], {"views": a.views[:, None]})[0][:, 0]
+            q = np.where(q > 1e-6, q, 0.0)
+            k = physics.gaussian_kernel(1.0)
+            r, size = len(k) // 2, a.views.shape[-1]
+            for n, (u, v) in enumerate(a.pixels):
+                want = sum(k[i] * k[j] * q[n, min(max(v + i - r, 0), size - 1), min(max(u + j - r, 0), size - 1)]
+                           for i in range(len(k)) for j in range(len(k)))
+                self.assertAlmostEqual(float(got[n]), float(want), places=5)
+            raw = physics_score.quality_at(MODEL, a, sigma_px=0.0)
+            np.testing.assert_allclose(raw, [q[n, v, u] for n, (u, v) in enumerate(a.pixels)], atol=1e-6)
+
+    def test_attempts_of_another_view_size_are_refused(self):
+        import tempfile
+
+        from mvgrasp_train import physics_score
+
+        with tempfile.TemporaryDirectory() as d:
+            a = self.attempts(d, size=16)
+            with self.assertRaisesRegex(ValueError, "input_size_px: attempts 16, data 72"):
+                physics_score.quality_at(MODEL, a)
