@@ -1,13 +1,17 @@
 //! Why episodes of `sim eval` end with "no grasp above tau": the episodes of
 //! one scenario and setting (seen families, shipped model, in-process), and
 //! at each such end the planner's view of the last frame: the objects still
-//! visible (their family, matched by position to the scene's start), the
+//! visible (their family, matched by position to the scene's start: wrong
+//! where objects moved, as in piles), the
 //! objects detected and their extents, how many detections hold two or more
 //! objects (merged) and how many objects are spread over two or more
 //! detections (split; `sim::overlap`, as `segmentation_recall` counts them), how many candidates at tau the hand
 //! check refused (by what the hand would have hit: the table, the grasp's
 //! own object, a neighbour), and, planned again at tau 0, how many grasps
-//! were kept and the best quality any reached. (Whether those grasps would
+//! were kept and the best quality any reached. Each object left is listed
+//! with the narrowest way across its visible points seen from above: over
+//! the gripper's stroke (140 mm for the 2F-140), no parallel-jaw grasp
+//! takes it from any side. (Whether those grasps would
 //! have held: run the same setting at tau 0.) An episode can also end on a
 //! frame whose grasps had all already failed (the loop does not try one
 //! again until an object is taken): then the line says how many it was
@@ -33,7 +37,32 @@ struct Diagnosing<'a> {
     last: String,
     seed: u64,
     png_dir: Option<&'a std::path::Path>,
-    left: Vec<[f64; 2]>,
+    /// Each visible object: the centre of its points (x, y) and the
+    /// narrowest way across them seen from above (m).
+    left: Vec<([f64; 2], f64)>,
+}
+
+/// The narrowest width of points projected on the table, over directions
+/// 1 degree apart, between the 1st and 99th percentile of each direction
+/// (the camera's noise puts a few edge pixels on the table behind): a
+/// parallel-jaw grasp closes roughly horizontally, so an object whose
+/// visible part is wider than the stroke every way cannot be taken from any
+/// side (the hidden part only widens it). Only points 5 mm or more over the
+/// table count.
+fn narrowest_across(points: &[nalgebra::Point3<f64>], table_z: f64) -> f64 {
+    let above: Vec<_> = points.iter().filter(|p| p.z > table_z + 0.005).collect();
+    if above.len() < 10 {
+        return 0.0;
+    }
+    (0..180)
+        .map(|deg| {
+            let (s, c) = f64::from(deg).to_radians().sin_cos();
+            let mut d: Vec<f64> = above.iter().map(|p| p.x * c + p.y * s).collect();
+            d.sort_by(f64::total_cmp);
+            let at = |q: f64| d[((d.len() - 1) as f64 * q).round() as usize];
+            at(0.99) - at(0.01)
+        })
+        .fold(f64::INFINITY, f64::min)
 }
 
 impl GraspSource for Diagnosing<'_> {
@@ -73,15 +102,18 @@ impl GraspSource for Diagnosing<'_> {
             let q = plan(&all, self.inner.net)?;
             let labels: std::collections::HashSet<u16> =
                 frame.labels.iter().copied().filter(|&l| l >= 2).collect();
+            // Scene::workspace starts 5 cm under the table top.
+            let table_z = workspace.min.z + 0.05;
             self.left = labels
                 .iter()
                 .map(|&l| {
                     let pts = frame.labelled_points(l);
                     let n = pts.len().max(1) as f64;
-                    [
+                    let centre = [
                         pts.iter().map(|p| p.x).sum::<f64>() / n,
                         pts.iter().map(|p| p.y).sum::<f64>() / n,
-                    ]
+                    ];
+                    (centre, narrowest_across(&pts, table_z))
                 })
                 .collect();
             let best_q = q.grasps.iter().map(|g| g.quality).fold(0.0f32, f32::max);
@@ -221,7 +253,7 @@ fn main() -> anyhow::Result<()> {
         let names: Vec<String> = source
             .left
             .iter()
-            .filter_map(|c| {
+            .filter_map(|(c, across)| {
                 scene
                     .objects
                     .iter()
@@ -232,7 +264,7 @@ fn main() -> anyhow::Result<()> {
                         };
                         d(a).total_cmp(&d(b))
                     })
-                    .map(|o| o.model.name.clone())
+                    .map(|o| format!("{} {:.0}mm", o.model.name, across * 1e3))
             })
             .collect();
         println!(
