@@ -108,8 +108,8 @@ enum Command {
     /// removal rates per scenario and planner setting, failure causes, and
     /// planning times (see `eval.rs`). Writes OUT/eval.md and OUT/eval.json.
     Eval {
-        /// The ONNX model.
-        #[arg(long, default_value = "models/mvgrasp.onnx")]
+        /// The ONNX model (the service's default).
+        #[arg(long, default_value = "models/mvgrasp-physics.onnx")]
         model: PathBuf,
         /// onnx (the model through ONNX Runtime) or baseline (the analytic
         /// moments network, no model file).
