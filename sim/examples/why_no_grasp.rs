@@ -37,6 +37,8 @@ struct Diagnosing<'a> {
     last: String,
     seed: u64,
     png_dir: Option<&'a std::path::Path>,
+    /// The table top's height in the world (m).
+    table_z: f64,
     /// Each visible object: the centre of its points (x, y) and the
     /// narrowest way across them seen from above (m).
     left: Vec<([f64; 2], f64)>,
@@ -102,8 +104,6 @@ impl GraspSource for Diagnosing<'_> {
             let q = plan(&all, self.inner.net)?;
             let labels: std::collections::HashSet<u16> =
                 frame.labels.iter().copied().filter(|&l| l >= 2).collect();
-            // Scene::workspace starts 5 cm under the table top.
-            let table_z = workspace.min.z + 0.05;
             self.left = labels
                 .iter()
                 .map(|&l| {
@@ -113,7 +113,7 @@ impl GraspSource for Diagnosing<'_> {
                         pts.iter().map(|p| p.x).sum::<f64>() / n,
                         pts.iter().map(|p| p.y).sum::<f64>() / n,
                     ];
-                    (centre, narrowest_across(&pts, table_z))
+                    (centre, narrowest_across(&pts, self.table_z))
                 })
                 .collect();
             let best_q = q.grasps.iter().map(|g| g.quality).fold(0.0f32, f32::max);
@@ -176,10 +176,10 @@ fn main() -> anyhow::Result<()> {
     let setting = Setting::parse(&arg(2, "all:0.1"))?;
     let episodes: u64 = arg(3, "16").parse()?;
     let seed0: u64 = arg(4, "900000").parse()?;
-    let model = ModelSettings {
-        path: arg(5, "models/mvgrasp-physics.onnx").into(),
-        ..ModelSettings::default()
-    };
+    let mut model = ModelSettings::default();
+    if let Some(path) = args.get(5) {
+        model.path = path.into();
+    }
     let mut loaded = mvgrasp_server::backend::load(&model, 64)?;
     let planner = Planner::new(PlannerConfig::default(), loaded.net.contract().clone())?;
     let families: Vec<Family> = arg(
@@ -198,6 +198,8 @@ fn main() -> anyhow::Result<()> {
         ..EpisodeConfig::default()
     };
     for seed in seed0..seed0 + episodes {
+        // The scene as the episode starts (the table does not move).
+        let (scene, _) = mvgrasp_sim::eval::episode_scene(scenario, seed, &config.catalog)?;
         let mut source = Diagnosing {
             inner: InProcess {
                 planner: &planner,
@@ -206,6 +208,7 @@ fn main() -> anyhow::Result<()> {
             last: String::new(),
             seed,
             png_dir: png_dir.as_deref(),
+            table_z: f64::from(scene.table_z),
             left: Vec::new(),
         };
         let e = run_episode(scenario, seed, &setting, &mut source, &config)?;
@@ -224,7 +227,6 @@ fn main() -> anyhow::Result<()> {
                 )
             })
             .collect();
-        let (scene, _) = mvgrasp_sim::eval::episode_scene(scenario, seed, &config.catalog)?;
         // Isolated scenes: where the first grasp sat on the object, in the
         // object's frame (origin and z axis as the family builds it: a
         // cylinder's base centre and axis), and its closing direction.

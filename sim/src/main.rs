@@ -109,7 +109,7 @@ enum Command {
     /// planning times (see `eval.rs`). Writes OUT/eval.md and OUT/eval.json.
     Eval {
         /// The ONNX model (the service's default).
-        #[arg(long, default_value = "models/mvgrasp-physics.onnx")]
+        #[arg(long, default_value_os_t = ModelSettings::default().path)]
         model: PathBuf,
         /// onnx (the model through ONNX Runtime) or baseline (the analytic
         /// moments network, no model file).
