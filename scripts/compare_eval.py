@@ -15,14 +15,24 @@ then, for runs since 2026-11-25 (whose attempts record the object's tilt),
 the slips during lift by family and by the pose the object lay in; and
 for runs made with `--judge`, the judged models on the same states: each
 one's held grasps, and against the first judged model the states only it
-held and only the first held, with a two-sided sign test on those.
+held and only the first held, with a two-sided sign test on those; last, each run's episodes
+paired with the first run's (same scenario, seed and setting): objects
+removed per episode, run minus first, summed with a 95% bootstrap
+interval over episodes and a sign test on the episodes that differ.
 The first run is the reference; the others show their difference to it.
-Standard library only.
+
+    python3 scripts/compare_eval.py --paired A1:B1 [A2:B2 ...]
+
+pools the paired episodes of several seed sets (A runs of one model, B of
+the other) into one such comparison, per scenario and in all: how a
+default change is judged (models/MODEL_CARD.md, "The default since
+2026-11-26"). Standard library only.
 """
 
 import json
 import math
 import os
+import random
 import sys
 from collections import Counter
 
@@ -128,6 +138,76 @@ def judged_pairs(run):
     return rows
 
 
+# Bootstrap draws and the generator's seed for the paired interval: fixed, so
+# a report is the same each time it is made.
+BOOTSTRAP_DRAWS = 4000
+BOOTSTRAP_SEED = 1
+
+
+def paired_episodes(run_a, run_b):
+    """{(scenario, seed, setting): (removed by A, removed by B, objects)}
+    over the episodes both runs hold. Raises ValueError where a pair's
+    object counts differ: the runs did not see the same scenes."""
+    def by_key(run):
+        return {(e["scenario"], e["seed"], e["setting"]): e for e in run.get("episodes", [])
+                if "seed" in e and "setting" in e}
+    a, b = by_key(run_a), by_key(run_b)
+    pairs = {}
+    for key in sorted(set(a) & set(b)):
+        if a[key]["objects"] != b[key]["objects"]:
+            raise ValueError(f"episode {key}: {a[key]['objects']} objects against {b[key]['objects']}: "
+                             "not the same scene (different seeds or simulator revisions?)")
+        pairs[key] = (a[key]["removed"], b[key]["removed"], a[key]["objects"])
+    return pairs
+
+
+def paired_summary(diffs, draws=BOOTSTRAP_DRAWS, seed=BOOTSTRAP_SEED):
+    """For per-episode differences (B minus A): (episodes, total difference,
+    2.5% and 97.5% points of the total over `draws` bootstrap resamples of
+    the episodes, episodes better, episodes worse, sign test p)."""
+    diffs = list(diffs)
+    better, worse = sum(d > 0 for d in diffs), sum(d < 0 for d in diffs)
+    if not diffs:
+        return 0, 0, 0, 0, 0, 0, 1.0
+    rng = random.Random(seed)
+    totals_ = sorted(sum(rng.choice(diffs) for _ in diffs) for _ in range(draws))
+    lo, hi = totals_[int(0.025 * draws)], totals_[int(0.975 * draws) - 1]
+    return len(diffs), sum(diffs), lo, hi, better, worse, sign_test(better, worse)
+
+
+def paired_lines(pairs):
+    """Report lines per scenario and in all for {key: (removed A, removed B,
+    objects)} (keys start with the scenario)."""
+    lines = []
+    scenarios = sorted({key[0] for key in pairs}) + ["all"]
+    for scenario in scenarios:
+        chosen = [v for k, v in pairs.items() if scenario in ("all", k[0])]
+        n, total, lo, hi, better, worse, p = paired_summary(b - a for a, b, _ in chosen)
+        objects = sum(o for _, _, o in chosen)
+        removed_a, removed_b = sum(a for a, _, _ in chosen), sum(b for _, b, _ in chosen)
+        lines.append(f"  {scenario:10s} {n:4d} episodes, {objects:5d} objects: removed {removed_a} "
+                     f"({removed_a / objects:.3f}) against {removed_b} ({removed_b / objects:.3f}), "
+                     f"{total:+d} (95% bootstrap {lo:+d} to {hi:+d}); episodes better {better} / "
+                     f"worse {worse}, sign test p = {p:.3g}")
+    return lines
+
+
+def report_paired(pair_paths):
+    """The pooled paired comparison of `--paired A:B ...`."""
+    pooled, lines = {}, []
+    for i, (a_path, b_path) in enumerate(pair_paths):
+        pairs = paired_episodes(load(a_path), load(b_path))
+        if not pairs:
+            raise ValueError(f"{a_path} and {b_path} share no episode (same seeds and settings?)")
+        lines.append(f"{a_path} : {b_path}")
+        lines += paired_lines(pairs)
+        pooled.update({(k[0], i) + k[1:]: v for k, v in pairs.items()})
+    if len(pair_paths) > 1:
+        lines.append(f"pooled over {len(pair_paths)} pairs of runs")
+        lines += paired_lines(pooled)
+    return "\n".join(lines)
+
+
 def per_attempt(c):
     return c["removed"] / c["attempts"] if c["attempts"] else float("nan")
 
@@ -183,6 +263,12 @@ def report_runs(runs, names):
             for model, held, n, only_it, only_first, p in rows:
                 versus = "" if model == rows[0][0] else f"  {only_it} / {only_first}, p = {p:.3g}"
                 lines.append(f"  {model:36s} held {held}/{n} ({held / n:.3f}){versus}")
+    for name, run in zip(names[1:], runs[1:]):
+        pairs = paired_episodes(runs[0], run)
+        if pairs:
+            lines.append(f"\npaired episodes, {name} against {names[0]} (objects removed per episode, "
+                         f"{name} minus {names[0]})")
+            lines += paired_lines(pairs)
     return "\n".join(lines)
 
 
@@ -190,7 +276,18 @@ def main(argv):
     if not argv or argv[0] in ("-h", "--help"):
         print(__doc__)
         return 0 if argv else 2
-    print(report(argv))
+    try:
+        if argv[0] == "--paired":
+            pairs = [arg.split(":") for arg in argv[1:]]
+            if not pairs or any(len(p) != 2 for p in pairs):
+                print("--paired takes RUN_A:RUN_B arguments", file=sys.stderr)
+                return 2
+            print(report_paired(pairs))
+        else:
+            print(report(argv))
+    except (OSError, ValueError, KeyError) as e:
+        print(f"compare_eval: {e}", file=sys.stderr)
+        return 1
     return 0
 
 

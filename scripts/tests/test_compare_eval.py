@@ -134,5 +134,63 @@ class Judged(unittest.TestCase):
         self.assertEqual(compare_eval.sign_test(8, 2), compare_eval.sign_test(2, 8))
 
 
+def episode(scenario, seed, setting, removed, objects):
+    return {"scenario": scenario, "seed": seed, "setting": setting, "removed": removed, "objects": objects,
+            "attempts": []}
+
+
+class Paired(unittest.TestCase):
+    # Run A and run B on the same four scenes under one setting; B also ran a
+    # second setting that A did not (left out of the pairs).
+    A = {"command": ["sim", "eval", "--seed", "5"], "summaries": [],
+         "episodes": [episode("pile", 5, "all:0.1", 3, 5), episode("pile", 6, "all:0.1", 5, 5),
+                      episode("clutter", 5, "all:0.1", 10, 12), episode("clutter", 6, "all:0.1", 12, 12)]}
+    B = {"command": ["sim", "eval", "--seed", "5"], "summaries": [],
+         "episodes": [episode("pile", 5, "all:0.1", 5, 5), episode("pile", 6, "all:0.1", 5, 5),
+                      episode("clutter", 5, "all:0.1", 11, 12), episode("clutter", 6, "all:0.1", 11, 12),
+                      episode("clutter", 6, "top-down:0.1", 12, 12)]}
+
+    def test_episodes_pair_by_scenario_seed_and_setting(self):
+        pairs = compare_eval.paired_episodes(self.A, self.B)
+        self.assertEqual(pairs, {("clutter", 5, "all:0.1"): (10, 11, 12), ("clutter", 6, "all:0.1"): (12, 11, 12),
+                                 ("pile", 5, "all:0.1"): (3, 5, 5), ("pile", 6, "all:0.1"): (5, 5, 5)})
+
+    def test_different_scenes_are_refused(self):
+        other = dict(self.B, episodes=[episode("pile", 5, "all:0.1", 4, 6)])
+        with self.assertRaisesRegex(ValueError, "not the same scene"):
+            compare_eval.paired_episodes(self.A, other)
+
+    def test_summary_counts_episodes_and_brackets_the_total(self):
+        n, total, lo, hi, better, worse, p = compare_eval.paired_summary([2, 0, 1, -1])
+        self.assertEqual((n, total, better, worse), (4, 2, 2, 1))
+        self.assertAlmostEqual(p, compare_eval.sign_test(2, 1))
+        # Every resample's total lies between 4 x min and 4 x max.
+        self.assertTrue(-4 <= lo <= total <= hi <= 8, (lo, hi))
+        # All episodes equal: no spread, no evidence.
+        self.assertEqual(compare_eval.paired_summary([1, 1, 1]), (3, 3, 3, 3, 3, 0, 0.25))
+        # The same call gives the same interval (fixed generator seed).
+        self.assertEqual(compare_eval.paired_summary([2, 0, 1, -1]), (n, total, lo, hi, better, worse, p))
+        self.assertEqual(compare_eval.paired_summary([]), (0, 0, 0, 0, 0, 0, 1.0))
+
+    def test_report_and_pooled_report(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            paths = []
+            for name, r in (("a", self.A), ("b", self.B)):
+                with open(os.path.join(tmp, name + ".json"), "w") as f:
+                    json.dump(r, f)
+                paths.append(os.path.join(tmp, name + ".json"))
+            text = compare_eval.report(paths)
+            pooled = compare_eval.report_paired([paths, paths])
+            self.assertEqual(compare_eval.main(["--paired", paths[0]]), 2)
+            self.assertEqual(compare_eval.main(["--paired", paths[0] + ":" + os.path.join(tmp, "none.json")]), 1)
+        self.assertIn("paired episodes, b.json against a.json", text)
+        self.assertIn("pile          2 episodes,    10 objects: removed 8 (0.800) against 10 (1.000), +2", text)
+        self.assertIn("clutter       2 episodes,    24 objects: removed 22 (0.917) against 22 (0.917), +0", text)
+        self.assertIn("episodes better 1 / worse 1", text)
+        # Pooled: the same pair twice is eight episodes, twice the difference.
+        all_line = pooled.split("pooled over 2 pairs of runs\n")[1].splitlines()[-1]
+        self.assertIn("all           8 episodes,    68 objects: removed 60 (0.882) against 64 (0.941), +4", all_line)
+
+
 if __name__ == "__main__":
     unittest.main()
