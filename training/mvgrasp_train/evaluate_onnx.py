@@ -24,6 +24,10 @@ every view, not only the 20% held-out share. `--training-views` scores the
 80% a model trained on instead (the split is the same for every dataset), to
 see how far a network fits its own training views.
 
+Each model after the first is paired with the first on the same views:
+the views only it got right and those only the first got right, with an
+exact two-sided sign test on those (`metric.paired_views`).
+
 It also judges objects as the planner's `all` view policy acts on them
 (`metric.object_picks`): the best grasp over each object's views, tried
 when its quality clears `--object-threshold` (the planner's min_quality,
@@ -149,6 +153,14 @@ def main(argv=None):
     for n, path in enumerate(args.models):
         pred = predict(path, ds.views[seen], sigma_px=args.smoothing_sigma_px, flips=args.flips)
         results[path] = {"seen_families": report(pred, ds, seen, args.object_threshold, args.angle_limit_deg)}
+        ok, _ = metric.hits(pred, ds, seen, args.angle_limit_deg)
+        if n == 0:
+            first_ok = ok
+        else:
+            only_it, only_first, p_value = metric.paired_views(first_ok, ok)
+            results[path]["seen_families"]["paired_against_first"] = {
+                "first": args.models[0], "only_this_right": only_it, "only_first_right": only_first,
+                "sign_test_p": p_value}
         if args.misses and n == 0:
             from . import plot
             picked = metric.misses(pred, ds, seen)[:args.misses_count]
@@ -167,6 +179,12 @@ def main(argv=None):
         print(f"{path:<40} {100 * s['accuracy']:6.1f}% "
               + " ".join(f"{100 * v.get(a, {}).get('accuracy', float('nan')):5.1f}%" for a in ("top", "front", "side"))
               + f" {100 * u:6.1f}%", file=sys.stderr)
+    for path, r in results.items():
+        q = r["seen_families"].get("paired_against_first")
+        if q:
+            print(f"{path}: views (seen families) only it got right / only {q['first']} got right: "
+                  f"{q['only_this_right']} / {q['only_first_right']}, sign test p = {q['sign_test_p']:.2g}",
+                  file=sys.stderr)
     for path, r in results.items():
         o = r["seen_families"]["objects"]
         print(f"{path}: objects (the `all` policy, best grasp over each object's views): "

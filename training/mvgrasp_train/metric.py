@@ -15,6 +15,8 @@ boxes, grasps 20 degrees or more off the faces pass at 30 yet slip half
 the time in physics (models/MODEL_CARD.md, "Where the slips are").
 """
 
+import math
+
 import numpy as np
 
 ANGLE_LIMIT_DEG = 30.0
@@ -159,6 +161,25 @@ def hits(pred_maps, ds, indices, angle_limit_deg=ANGLE_LIMIT_DEG):
         out.append(grasp_correct((u[k], v[k], phi[k], width[k] * width_scale), truth, pixel_m, pad_m,
                                  angle_limit_deg) if len(truth) else None)
     return out, quality
+
+
+def sign_test(a, b):
+    """Two-sided exact sign test: the chance of a split at least as uneven
+    as a : b of a + b discordant pairs if either side were as likely."""
+    n = a + b
+    if n == 0:
+        return 1.0
+    return min(1.0, 2.0 * sum(math.comb(n, k) for k in range(min(a, b) + 1)) / 2.0 ** n)
+
+
+def paired_views(first_ok, ok):
+    """Two models' `hits` on the same views: (views only the second got
+    right, views only the first got right, the sign test's p on those).
+    Views without positives (None) are left out."""
+    pairs = [(f, o) for f, o in zip(first_ok, ok, strict=True) if f is not None]
+    only_it = sum(o and not f for f, o in pairs)
+    only_first = sum(f and not o for f, o in pairs)
+    return only_it, only_first, sign_test(only_it, only_first)
 
 
 def miss_kinds(pred_maps, ds, indices, near_px=2.0, ok=None):

@@ -81,6 +81,18 @@ class Metric(unittest.TestCase):
         self.assertAlmostEqual(metric.iou(a, crossed), 0.25)
         self.assertEqual(metric.iou(a, metric.rectangle(40, 40, 0.0, 10, 4)), 0.0)
 
+    def test_paired_views_count_discordant_views_only(self):
+        first = [True, True, False, None, False, True]
+        other = [True, False, True, None, True, True]
+        only_it, only_first, p = metric.paired_views(first, other)
+        self.assertEqual((only_it, only_first), (2, 1))  # views 2 and 4 / view 1; view 3 has no positives
+        self.assertAlmostEqual(p, 1.0)
+        self.assertEqual(metric.paired_views(first, first), (0, 0, 1.0))
+        self.assertAlmostEqual(metric.sign_test(0, 5), 2 / 32)
+        self.assertAlmostEqual(metric.sign_test(8, 2), 2 * 56 / 1024)
+        with self.assertRaises(ValueError):
+            metric.paired_views(first, other[:-1])
+
     def test_angles_are_modulo_pi(self):
         self.assertAlmostEqual(float(metric.angle_diff(np.pi / 2 - 0.1, -np.pi / 2 + 0.1)), 0.2)
         self.assertAlmostEqual(float(metric.angle_diff(0.0, np.pi / 2)), np.pi / 2)
