@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 ORT_DYLIB_PATH="$(scripts/fetch-onnxruntime.sh)"
 export ORT_DYLIB_PATH
 cargo build --release --quiet -p mvgrasp-server -p mvgrasp-client
-model=${MVGRASP_MODEL:-models/mvgrasp-physics.onnx}
+model=${MVGRASP_MODEL:-models/mvgrasp-physics-labels.onnx}
 if [[ -n "${MVGRASP_MODEL:-}" && ! -f "$model" ]]; then
     echo "error: MVGRASP_MODEL=$model: no such file" >&2
     exit 1

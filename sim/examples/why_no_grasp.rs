@@ -22,7 +22,7 @@
 //! With `PNG_DIR`, each such last frame is drawn there as `SEED.png`: the
 //! renderer's labels | the planner's detections.
 //! Defaults: packed, all:0.1, 16 episodes from seed 900000 (the results/
-//! scenes), models/mvgrasp-physics.onnx (the default), the 8 seen families. Each attempt is
+//! scenes), the default model (`ModelSettings::default()`), the 8 seen families. Each attempt is
 //! listed with its outcome, its approach's angle below the horizontal and
 //! its quality; in isolated scenes, where the first grasp sat on the object. Needs ORT_DYLIB_PATH.
 use mvgrasp_core::{PlanOptions, Planner, PlannerConfig, Workspace};

@@ -139,6 +139,10 @@ fn golden_vectors_match_through_ort() {
     check_golden("models/mvgrasp-paper.onnx", "models/golden-paper");
     check_golden("models/mvgrasp-sim3.onnx", "models/golden-sim3");
     check_golden("models/mvgrasp-physics.onnx", "models/golden-physics");
+    check_golden(
+        "models/mvgrasp-physics-labels.onnx",
+        "models/golden-physics-labels",
+    );
 }
 
 fn check_golden(file: &str, golden: &str) {
