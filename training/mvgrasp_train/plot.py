@@ -63,6 +63,9 @@ def draw_views(out, ds, indices, pred, title):
 
 
 def main(argv):
+    if len(argv) < 2 or argv[0].startswith("-"):
+        print(__doc__)
+        return 0 if argv and argv[0] in ("-h", "--help") else 2
     out, runs = argv[0], argv[1:]
     fig, (ax_loss, ax_acc) = plt.subplots(1, 2, figsize=(11, 4))
     for k, spec in enumerate(runs):
@@ -93,4 +96,4 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    sys.exit(main(sys.argv[1:]))
