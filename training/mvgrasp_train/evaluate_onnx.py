@@ -110,9 +110,9 @@ def rounded(x):
     return "-" if x is None else f"{x:.2f}"
 
 
-def report(pred, ds, indices, object_threshold=0.1, angle_limit_deg=metric.ANGLE_LIMIT_DEG):
+def report(pred, ds, indices, object_threshold=0.1, angle_limit_deg=metric.ANGLE_LIMIT_DEG, judged=None):
     return metric.evaluate(pred, ds, indices, by=("scenario", "family"), object_threshold=object_threshold,
-                           angle_limit_deg=angle_limit_deg)
+                           angle_limit_deg=angle_limit_deg, judged=judged)
 
 
 def main(argv=None):
@@ -152,8 +152,9 @@ def main(argv=None):
     results = {}
     for n, path in enumerate(args.models):
         pred = predict(path, ds.views[seen], sigma_px=args.smoothing_sigma_px, flips=args.flips)
-        results[path] = {"seen_families": report(pred, ds, seen, args.object_threshold, args.angle_limit_deg)}
-        ok, _ = metric.hits(pred, ds, seen, args.angle_limit_deg)
+        judged = metric.hits(pred, ds, seen, args.angle_limit_deg)
+        results[path] = {"seen_families": report(pred, ds, seen, args.object_threshold, args.angle_limit_deg, judged)}
+        ok = judged[0]
         if n == 0:
             first_ok = ok
         else:

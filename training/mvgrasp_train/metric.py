@@ -209,7 +209,8 @@ def miss_kinds(pred_maps, ds, indices, near_px=2.0, ok=None):
             "median_positives_missed": median_of(counts[False])}
 
 
-def evaluate(pred_maps, ds, indices, threshold=0.5, by=(), object_threshold=0.1, angle_limit_deg=ANGLE_LIMIT_DEG):
+def evaluate(pred_maps, ds, indices, threshold=0.5, by=(), object_threshold=0.1, angle_limit_deg=ANGLE_LIMIT_DEG,
+             judged=None):
     """Accuracy of `pred_maps` [len(indices), 4, L, L] on views `indices` of `ds`.
 
     Returns a dict: accuracy over views with positives, per view axis, and the
@@ -222,8 +223,10 @@ def evaluate(pred_maps, ds, indices, threshold=0.5, by=(), object_threshold=0.1,
     first pick of a clear-the-table run); for each meta key in `by`
     (scenario, family, ...), `per_KEY` = `accuracy_by` of the same judgements.
     A prediction matches a positive within `angle_limit_deg` (the paper's 30).
+    `judged`: `hits` of the same maps and views, where the caller has them
+    already (evaluate_onnx also pairs models on them).
     """
-    ok, quality = hits(pred_maps, ds, indices, angle_limit_deg)
+    ok, quality = judged if judged is not None else hits(pred_maps, ds, indices, angle_limit_deg)
     per_axis, empty, alarms = {}, 0, 0
     instances = [ds.meta[i].get("instance", f"view {i}") for i in indices]
     # A scene is a seed of a scenario, or an episode's frame (`step`: sim eval
