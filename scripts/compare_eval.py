@@ -26,15 +26,19 @@ The first run is the reference; the others show their difference to it.
 pools the paired episodes of several seed sets (A runs of one model, B of
 the other) into one such comparison, per scenario and in all: how a
 default change is judged (models/MODEL_CARD.md, "The default since
-2026-11-26"). Standard library only.
+2026-11-26"). Standard library only (the sign test comes from the training
+package's `mvgrasp_train/stats.py`, itself standard library).
 """
 
 import json
-import math
 import os
 import random
 import sys
 from collections import Counter
+
+# The sign test lives in the training package (a standard-library module there).
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "training"))
+from mvgrasp_train.stats import sign_test  # noqa: E402
 
 COUNTS = ("removed", "objects", "attempts")
 
@@ -109,16 +113,6 @@ def slips_by_pose(run):
             trials[key] += 1
             slipped[key] += attempt[0] == "slip during lift"
     return {key: (slipped[key], trials[key]) for key in trials}
-
-
-def sign_test(a, b):
-    """Two-sided exact sign test: the chance of a split at least as uneven
-    as a : b of a + b discordant pairs if either side were as likely."""
-    n = a + b
-    if n == 0:
-        return 1.0
-    tail = sum(math.comb(n, k) for k in range(0, min(a, b) + 1)) / 2.0 ** n
-    return min(1.0, 2.0 * tail)
 
 
 def judged_pairs(run):

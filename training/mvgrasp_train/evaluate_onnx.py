@@ -164,7 +164,7 @@ def main(argv=None):
                 "sign_test_p": p_value}
         if args.misses and n == 0:
             from . import plot
-            picked = metric.misses(pred, ds, seen)[:args.misses_count]
+            picked = metric.misses(pred, ds, seen, ok=ok)[:args.misses_count]
             plot.draw_views(args.misses, ds, [seen[k] for k in picked], pred[picked],
                             f"{path}: first {len(picked)} missed views")
         if families:

@@ -15,9 +15,9 @@ boxes, grasps 20 degrees or more off the faces pass at 30 yet slip half
 the time in physics (models/MODEL_CARD.md, "Where the slips are").
 """
 
-import math
-
 import numpy as np
+
+from .stats import sign_test
 
 ANGLE_LIMIT_DEG = 30.0
 IOU_LIMIT = 0.25
@@ -161,15 +161,6 @@ def hits(pred_maps, ds, indices, angle_limit_deg=ANGLE_LIMIT_DEG):
         out.append(grasp_correct((u[k], v[k], phi[k], width[k] * width_scale), truth, pixel_m, pad_m,
                                  angle_limit_deg) if len(truth) else None)
     return out, quality
-
-
-def sign_test(a, b):
-    """Two-sided exact sign test: the chance of a split at least as uneven
-    as a : b of a + b discordant pairs if either side were as likely."""
-    n = a + b
-    if n == 0:
-        return 1.0
-    return min(1.0, 2.0 * sum(math.comb(n, k) for k in range(min(a, b) + 1)) / 2.0 ** n)
 
 
 def paired_views(first_ok, ok):
@@ -326,8 +317,11 @@ def accuracy_by(ok, names):
     return out
 
 
-def misses(pred_maps, ds, indices):
+def misses(pred_maps, ds, indices, ok=None):
     """Positions k (into `indices`) of the views with positives whose best
-    predicted grasp matches none of them."""
-    ok, _ = hits(pred_maps, ds, indices)
+    predicted grasp matches none of them. `ok`: `hits`' judgements of these
+    views, where the caller has them already (at its own angle limit);
+    without it they are judged here at the paper's."""
+    if ok is None:
+        ok, _ = hits(pred_maps, ds, indices)
     return [k for k, h in enumerate(ok) if h is False]

@@ -264,6 +264,10 @@ class Reader(unittest.TestCase):
             pred[2, :, 4, 3] = [0.9, -1.0, 0.0, 0.25]
             self.assertEqual(metric.misses(pred, ds, [0, 1, 2]), [2])
             self.assertEqual(metric.misses(pred[[2, 0]], ds, [2, 0]), [0], "positions into the given indices")
+            # Judgements the caller already has (`hits` at its own angle limit) are used as given.
+            ok, _ = metric.hits(pred, ds, [0, 1, 2])
+            self.assertEqual(metric.misses(pred, ds, [0, 1, 2], ok=ok), [2])
+            self.assertEqual(metric.misses(pred, ds, [0, 1, 2], ok=[False, None, True]), [0])
             result = metric.evaluate(pred, ds, [0, 1, 2], by=("family", "scenario"))
             self.assertEqual(result["per_family"],
                              {"box": {"accuracy": 1.0, "views": 1}, "mug": {"accuracy": 0.0, "views": 1}})
