@@ -18,15 +18,15 @@
 # $OUT/datagen.tsv: that is the throughput figure of issue 3.
 # $SCENARIOS (default isolated,packed,pile,clutter) and $DATAGEN_ARGS (more
 # `sim datagen` options, e.g. "--stride-px 1 --angles 16": labels at every
-# pixel and 16 angles, about 10x the labelling time; MODEL_CARD.md, "Dense
+# pixel and 16 angles, about 10x the labelling time; HISTORY.md, "Dense
 # labels") change what each chunk holds.
 # `train MINUTES ARCH...`: one training run per architecture (default:
 # paper), all at once on the one GPU, cosine schedule over MINUTES, on every
 # chunk in $DATA, holding out the bowl family, the error at positive pixels
 # weighted $POSITIVE_WEIGHT times (default 10; 1 is the paper's plain MSE;
-# MODEL_CARD.md has the measurement), plus $RANK_WEIGHT times the rank loss
+# models/HISTORY.md has the measurement), plus $RANK_WEIGHT times the rank loss
 # (default 0: off; 0.01 lifted view accuracy 3 points on this CPU but
-# cleared fewer objects in physics, MODEL_CARD.md). ARCH: paper, narrow,
+# cleared fewer objects in physics, models/HISTORY.md). ARCH: paper, narrow,
 # skip. Runs land in $DATA/runs/ARCH. DEVICE (default cuda) = cpu runs the
 # same steps on a CPU, small, to check the script before spending device time.
 set -euo pipefail

@@ -44,7 +44,7 @@ use crate::targets::{LabelledView, TargetConfig, label_frame};
 pub const FORMAT_VERSION: u32 = 2;
 
 /// The data version of labels made now (sim-6: `grasp.rs` as it is; older
-/// versions are in models/MODEL_CARD.md).
+/// versions are in models/HISTORY.md).
 pub const DATA_VERSION: &str = "sim-6";
 
 /// What to generate.

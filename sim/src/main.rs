@@ -100,7 +100,7 @@ enum Command {
         #[arg(long)]
         threads: Option<usize>,
         /// Data version recorded in the manifest (sim-6: the labels of
-        /// `grasp.rs` as they are now; older versions are in MODEL_CARD.md).
+        /// `grasp.rs` as they are now; older versions are in models/HISTORY.md).
         #[arg(long, default_value = mvgrasp_sim::dataset::DATA_VERSION)]
         data_version: String,
     },

@@ -134,7 +134,7 @@ def rank_loss(scores, target_quality):
     The paper's accuracy takes the argmax of the quality map, and only the
     few percent of pixels painted positive can win it; this term scores
     that directly, where the MSE mostly learns "quality 0 almost
-    everywhere" (models/MODEL_CARD.md).
+    everywhere" (models/HISTORY.md, "Where the missing accuracy is").
     """
     logits = scores.flatten(1)
     positive = target_quality.flatten(1) > 0

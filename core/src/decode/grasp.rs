@@ -35,7 +35,7 @@ pub struct DecodeConfig {
     /// 4 cm pads: in `sim eval` (tuning seeds 800000, isolated / packed /
     /// pile, `top-down` 0.1) 1.5 cm slipped in 39 of 139 attempts, 3 cm in
     /// 12 of 130; at 4 cm the palm meets the object and the hand check
-    /// refuses nearly every grasp (models/MODEL_CARD.md).
+    /// refuses nearly every grasp (models/HISTORY.md).
     pub insertion_m: f64,
     /// Smallest distance kept between a pad and the table (m).
     pub table_clearance_m: f64,
