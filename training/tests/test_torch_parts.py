@@ -424,3 +424,59 @@ class PhysicsTerm(unittest.TestCase):
             physics_loss(model, a, picked, kernel, 0).backward()
             optimiser.step()
         self.assertLess(float(physics_loss(model, a, picked, kernel, 0)), 0.5 * before)
+
+
+@unittest.skipIf(MISSING, REASON)
+class Soup(unittest.TestCase):
+    """soup.py: the mean of runs' weights, refused across architectures."""
+
+    def save_run(self, root, name, architecture, seed):
+        import torch
+        from mvgrasp_train.model import GraspNet
+        torch.manual_seed(seed)
+        model = GraspNet(architecture)
+        for m in model.modules():  # give BatchNorm statistics that differ between runs too
+            if isinstance(m, torch.nn.BatchNorm2d):
+                m.running_mean.uniform_(-1, 1)
+        run = os.path.join(root, name)
+        os.makedirs(run)
+        torch.save({"architecture": architecture, "state_dict": model.state_dict(), "frozen_batchnorm": True},
+                   os.path.join(run, "model.pt"))
+        return run, model.state_dict()
+
+    def test_the_soup_is_the_mean_and_a_network(self):
+        import torch
+        from mvgrasp_train import soup
+        from mvgrasp_train.model import GraspNet
+        with tempfile.TemporaryDirectory() as root:
+            a, sa = self.save_run(root, "a", "narrow", 0)
+            b, sb = self.save_run(root, "b", "narrow", 1)
+            out = os.path.join(root, "ab")
+            self.assertEqual(soup.main(["--runs", f"{a},{b}", "--out", out]), 0)
+            saved = torch.load(os.path.join(out, "model.pt"), map_location="cpu")
+            self.assertTrue(saved["frozen_batchnorm"])
+            kernels = 0
+            for k, v in saved["state_dict"].items():
+                if v.is_floating_point():
+                    torch.testing.assert_close(v, (sa[k] + sb[k]) / 2)
+                    if v.dim() == 4:  # every kernel differs between the runs, so the mean is a real mix
+                        kernels += 1
+                        self.assertFalse(torch.equal(sa[k], sb[k]), k)
+                else:
+                    self.assertTrue(torch.equal(v, sa[k]), k)
+            self.assertGreater(kernels, 10)
+            model = GraspNet("narrow")
+            model.load_state_dict(saved["state_dict"])
+            out_maps = model.eval()(torch.rand(2, 1, 72, 72))
+            self.assertEqual(tuple(out_maps.shape), (2, 4, 72, 72))
+
+    def test_runs_of_different_architectures_are_refused(self):
+        from mvgrasp_train import soup
+        with tempfile.TemporaryDirectory() as root:
+            a, _ = self.save_run(root, "a", "narrow", 0)
+            b, _ = self.save_run(root, "b", "paper", 1)
+            out = os.path.join(root, "ab")
+            self.assertEqual(soup.main(["--runs", f"{a},{b}", "--out", out]), 1)
+            self.assertFalse(os.path.exists(os.path.join(out, "model.pt")))
+            with self.assertRaises(SystemExit):
+                soup.main(["--runs", a, "--out", out])
