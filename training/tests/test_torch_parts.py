@@ -444,15 +444,20 @@ class Soup(unittest.TestCase):
                    os.path.join(run, "model.pt"))
         return run, model.state_dict()
 
+    def soup_of_two(self, root, second_architecture):
+        """A narrow run and a run of `second_architecture`, souped into root/ab: (status, out, a, b)."""
+        from mvgrasp_train import soup
+        a = self.save_run(root, "a", "narrow", 0)
+        b = self.save_run(root, "b", second_architecture, 1)
+        out = os.path.join(root, "ab")
+        return soup.main(["--runs", f"{a[0]},{b[0]}", "--out", out]), out, a, b
+
     def test_the_soup_is_the_mean_and_a_network(self):
         import torch
-        from mvgrasp_train import soup
         from mvgrasp_train.model import GraspNet
         with tempfile.TemporaryDirectory() as root:
-            a, sa = self.save_run(root, "a", "narrow", 0)
-            b, sb = self.save_run(root, "b", "narrow", 1)
-            out = os.path.join(root, "ab")
-            self.assertEqual(soup.main(["--runs", f"{a},{b}", "--out", out]), 0)
+            status, out, (_, sa), (_, sb) = self.soup_of_two(root, "narrow")
+            self.assertEqual(status, 0)
             saved = torch.load(os.path.join(out, "model.pt"), map_location="cpu")
             self.assertTrue(saved["frozen_batchnorm"])
             kernels = 0
@@ -473,10 +478,8 @@ class Soup(unittest.TestCase):
     def test_runs_of_different_architectures_are_refused(self):
         from mvgrasp_train import soup
         with tempfile.TemporaryDirectory() as root:
-            a, _ = self.save_run(root, "a", "narrow", 0)
-            b, _ = self.save_run(root, "b", "paper", 1)
-            out = os.path.join(root, "ab")
-            self.assertEqual(soup.main(["--runs", f"{a},{b}", "--out", out]), 1)
+            status, out, (a, _), _ = self.soup_of_two(root, "paper")
+            self.assertEqual(status, 1)
             self.assertFalse(os.path.exists(os.path.join(out, "model.pt")))
-            with self.assertRaises(SystemExit):
+            with self.assertRaises(SystemExit):  # one run is no soup
                 soup.main(["--runs", a, "--out", out])
