@@ -40,9 +40,8 @@ def soup(runs, out):
         raise ValueError(f"the runs' architectures differ: {sorted(kinds)}")
     state = average([s["state_dict"] for s in saved])
     os.makedirs(out, exist_ok=True)
-    torch.save({"architecture": saved[0]["architecture"], "state_dict": state, "epochs": 0, "train_s": 0.0,
-                "frozen_batchnorm": saved[0].get("frozen_batchnorm", False), "soup_of": list(runs)},
-               os.path.join(out, "model.pt"))
+    torch.save({"architecture": saved[0]["architecture"], "state_dict": state,
+                "frozen_batchnorm": saved[0].get("frozen_batchnorm", False)}, os.path.join(out, "model.pt"))
     with open(os.path.join(out, "config.json"), "w") as f:
         json.dump({"soup_of": [os.path.abspath(r) for r in runs], "architecture": saved[0]["architecture"]}, f,
                   indent=1)
