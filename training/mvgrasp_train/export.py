@@ -26,7 +26,7 @@ import onnx
 import onnxruntime
 import torch
 
-from . import dataset
+from . import dataset, runs
 from .model import GraspNet, fold_batchnorm, subpixel
 
 TOLERANCE = 1e-4
@@ -93,7 +93,10 @@ def main(argv=None):
     p.add_argument("--no-subpixel", action="store_true", help="keep the transposed convolutions as they are")
     args = p.parse_args(argv)
 
-    saved = torch.load(os.path.join(args.run, "model.pt"), map_location="cpu")
+    try:
+        saved = runs.load(args.run)
+    except ValueError as e:
+        raise SystemExit(f"--run: {e}")
     model = GraspNet(saved["architecture"])
     model.load_state_dict(saved["state_dict"])
     model.eval()

@@ -25,6 +25,7 @@ import torch
 from onnx import numpy_helper
 from torch import nn
 
+from . import runs
 from .export import TOLERANCE, compare
 from .model import ARCHITECTURES, GraspNet, subpixel_taps
 
@@ -100,10 +101,7 @@ def main(argv=None):
     print(json.dumps({"onnx": args.onnx, "architecture": args.architecture, "max_abs_diff": worst}))
     if worst > TOLERANCE:
         sys.exit(f"the imported network differs from the file by {worst} > {TOLERANCE}")
-    os.makedirs(args.out, exist_ok=True)
-    state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
-    torch.save({"architecture": args.architecture, "state_dict": state, "frozen_batchnorm": True,
-                "imported_from": os.path.abspath(args.onnx)}, os.path.join(args.out, "model.pt"))
+    runs.save(args.out, args.architecture, model.state_dict(), True, imported_from=os.path.abspath(args.onnx))
 
 
 if __name__ == "__main__":

@@ -17,6 +17,8 @@ import json
 import os
 import sys
 
+from . import runs
+
 
 def average(state_dicts):
     """The element-wise mean of floating-point tensors of `state_dicts`
@@ -32,18 +34,15 @@ def average(state_dicts):
             for k, v in first.items()}
 
 
-def soup(runs, out):
-    import torch
-    saved = [torch.load(os.path.join(r, "model.pt"), map_location="cpu") for r in runs]
+def soup(run_dirs, out):
+    saved = [runs.load(r) for r in run_dirs]
     kinds = {s["architecture"] for s in saved}
     if len(kinds) != 1:
         raise ValueError(f"the runs' architectures differ: {sorted(kinds)}")
     state = average([s["state_dict"] for s in saved])
-    os.makedirs(out, exist_ok=True)
-    torch.save({"architecture": saved[0]["architecture"], "state_dict": state,
-                "frozen_batchnorm": saved[0].get("frozen_batchnorm", False)}, os.path.join(out, "model.pt"))
+    runs.save(out, saved[0]["architecture"], state, saved[0]["frozen_batchnorm"])
     with open(os.path.join(out, "config.json"), "w") as f:
-        json.dump({"soup_of": [os.path.abspath(r) for r in runs], "architecture": saved[0]["architecture"]}, f,
+        json.dump({"soup_of": [os.path.abspath(r) for r in run_dirs], "architecture": saved[0]["architecture"]}, f,
                   indent=1)
 
 
@@ -52,15 +51,15 @@ def main(argv=None):
     p.add_argument("--runs", required=True, help="comma-separated run folders (model.pt each)")
     p.add_argument("--out", required=True, help="run folder to write")
     args = p.parse_args(argv)
-    runs = [r for r in args.runs.split(",") if r]
-    if len(runs) < 2:
+    run_dirs = [r for r in args.runs.split(",") if r]
+    if len(run_dirs) < 2:
         p.error("--runs needs two runs or more")
     try:
-        soup(runs, args.out)
+        soup(run_dirs, args.out)
     except (OSError, ValueError) as e:
         print(f"soup: {e}", file=sys.stderr)
         return 1
-    print(f"wrote {os.path.join(args.out, 'model.pt')}: the mean of {len(runs)} runs")
+    print(f"wrote {os.path.join(args.out, 'model.pt')}: the mean of {len(run_dirs)} runs")
     return 0
 
 

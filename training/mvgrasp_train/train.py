@@ -51,7 +51,7 @@ import time
 import numpy as np
 import torch
 
-from . import augment, augment_torch, dataset, metric, physics
+from . import augment, augment_torch, dataset, metric, physics, runs
 from .model import ARCHITECTURES, GraspNet, squash, train_mode, widen
 
 
@@ -288,9 +288,12 @@ def main(argv=None):
     device = torch.device(args.device)
     model = GraspNet(args.architecture)
     if args.init:
-        saved = torch.load(os.path.join(args.init, "model.pt"), map_location="cpu")
+        try:
+            saved = runs.load(args.init)
+        except ValueError as e:
+            raise SystemExit(f"--init: {e}")
         start_from(model, saved, args.init)
-        args.freeze_batchnorm = args.freeze_batchnorm or saved.get("frozen_batchnorm", False)
+        args.freeze_batchnorm = args.freeze_batchnorm or saved["frozen_batchnorm"]
     model = model.to(device)
     teacher = Teacher(args.teacher, ds.contract, args.threads) if args.teacher else None
     attempts = None
@@ -384,10 +387,8 @@ def main(argv=None):
         if done:
             print(f"time budget of {args.minutes} min reached after epoch {epoch}", file=sys.stderr)
             break
-    state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
-    torch.save({"architecture": args.architecture, "state_dict": state, "epochs": epoch,
-                "train_s": time.time() - started, "frozen_batchnorm": args.freeze_batchnorm},
-               os.path.join(args.out, "model.pt"))
+    runs.save(args.out, args.architecture, model.state_dict(), args.freeze_batchnorm, epochs=epoch,
+              train_s=time.time() - started)
     final = evaluate(model, ds, eval_idx, device=device)
     if family_idx:
         final["unseen_families"] = {"families": sorted(unseen), **evaluate(model, ds, family_idx, device=device)}

@@ -432,6 +432,7 @@ class Soup(unittest.TestCase):
 
     def save_run(self, root, name, architecture, seed):
         import torch
+        from mvgrasp_train import runs
         from mvgrasp_train.model import GraspNet
         torch.manual_seed(seed)
         model = GraspNet(architecture)
@@ -439,9 +440,7 @@ class Soup(unittest.TestCase):
             if isinstance(m, torch.nn.BatchNorm2d):
                 m.running_mean.uniform_(-1, 1)
         run = os.path.join(root, name)
-        os.makedirs(run)
-        torch.save({"architecture": architecture, "state_dict": model.state_dict(), "frozen_batchnorm": True},
-                   os.path.join(run, "model.pt"))
+        runs.save(run, architecture, model.state_dict(), True)
         return run, model.state_dict()
 
     def soup_of_two(self, root, second_architecture):
@@ -483,3 +482,44 @@ class Soup(unittest.TestCase):
             self.assertFalse(os.path.exists(os.path.join(out, "model.pt")))
             with self.assertRaises(SystemExit):  # one run is no soup
                 soup.main(["--runs", a, "--out", out])
+
+
+@unittest.skipIf(MISSING, REASON)
+class RunFolder(unittest.TestCase):
+    """runs.py: what train, import_onnx and soup write is what export and train --init read."""
+
+    def test_a_saved_run_loads_back_as_the_same_network(self):
+        import torch
+        from mvgrasp_train import runs
+        from mvgrasp_train.model import GraspNet
+        torch.manual_seed(3)
+        model = GraspNet("narrow").eval()
+        with tempfile.TemporaryDirectory() as root:
+            run = os.path.join(root, "nested", "run")  # save makes the folders
+            runs.save(run, "narrow", model.state_dict(), True, epochs=7)
+            saved = runs.load(run)
+        self.assertEqual((saved["architecture"], saved["frozen_batchnorm"], saved["epochs"]), ("narrow", True, 7))
+        again = GraspNet(saved["architecture"])
+        again.load_state_dict(saved["state_dict"])
+        x = torch.rand(2, 1, 72, 72)
+        torch.testing.assert_close(again.eval()(x), model(x), rtol=0, atol=0)
+
+    def test_what_is_not_a_run_is_refused_by_name(self):
+        import torch
+        from mvgrasp_train import export, runs
+        with tempfile.TemporaryDirectory() as root:
+            with self.assertRaisesRegex(ValueError, "no model.pt"):
+                runs.load(root)
+            with self.assertRaisesRegex(SystemExit, "--run: .*no model.pt"):
+                export.main(["--run", root, "--data", root, "--out", os.path.join(root, "m.onnx"), "--version", "t"])
+            path = os.path.join(root, "model.pt")
+            with open(path, "wb") as f:
+                f.write(b"not a checkpoint")
+            with self.assertRaisesRegex(ValueError, "not readable as a run"):
+                runs.load(root)
+            torch.save({"weights": {}}, path)
+            with self.assertRaisesRegex(ValueError, "needs architecture and state_dict"):
+                runs.load(root)
+            torch.save({"architecture": "huge", "state_dict": {}}, path)
+            with self.assertRaisesRegex(ValueError, "unknown architecture 'huge'"):
+                runs.load(root)
