@@ -59,7 +59,7 @@ def main(argv=None):
     except (OSError, ValueError) as e:
         print(f"soup: {e}", file=sys.stderr)
         return 1
-    print(f"wrote {os.path.join(args.out, 'model.pt')}: the mean of {len(run_dirs)} runs")
+    print(f"wrote {os.path.join(args.out, runs.MODEL)}: the mean of {len(run_dirs)} runs")
     return 0
 
 

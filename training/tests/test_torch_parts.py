@@ -453,11 +453,12 @@ class Soup(unittest.TestCase):
 
     def test_the_soup_is_the_mean_and_a_network(self):
         import torch
+        from mvgrasp_train import runs
         from mvgrasp_train.model import GraspNet
         with tempfile.TemporaryDirectory() as root:
             status, out, (_, sa), (_, sb) = self.soup_of_two(root, "narrow")
             self.assertEqual(status, 0)
-            saved = torch.load(os.path.join(out, "model.pt"), map_location="cpu")
+            saved = runs.load(out)
             self.assertTrue(saved["frozen_batchnorm"])
             kernels = 0
             for k, v in saved["state_dict"].items():
