@@ -13,7 +13,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from mvgrasp_train import augment, dataset, evaluate_onnx, metric, physics, physics_score, refusals, repeatability  # noqa: E402
+from mvgrasp_train import augment, dataset, evaluate_onnx, metric, pack, physics, physics_score, refusals, repeatability  # noqa: E402
 
 
 def line_view(l, u0, v0, phi, half):
@@ -370,6 +370,68 @@ class Reader(unittest.TestCase):
 
         averaged = evaluate_onnx.flip_average(leaning, views)
         self.assertLess(np.abs(averaged[:, 0] - 0.5).max(), 1e-6)
+
+class Pack(unittest.TestCase):
+    """pack.py: what travels to the GPU machine comes back as a dataset and
+    attempt folders that train reads, in float16, the grasps derived from
+    the maps."""
+
+    def test_a_dataset_and_attempts_round_trip(self):
+        with tempfile.TemporaryDirectory() as root:
+            data, attempts, packed, out = (os.path.join(root, n) for n in ("d", "av", "pack", "out"))
+            write_dataset(data)
+            # A width the gripper just opens to: float16 must not round it past max_width_m.
+            ds0 = dataset.load(data)
+            maps = np.load(os.path.join(data, "shard_00000", "maps.npy"))
+            maps[0, :, 4, 3] = [1 / 3, 0.6, 0.8, 0.7]
+            np.save(os.path.join(data, "shard_00000", "maps.npy"), maps)
+            write_attempts(attempts, [((1, 2), "ok"), ((3, 4), "slip during lift"), ((2, 2), "ok")],
+                           alternatives=[False, True, False])
+            pack.main(["pack", "--data", data, "--physics", attempts, "--own-only", "--out", packed])
+            self.assertFalse(any(f == "grasps.npy" for _, _, fs in os.walk(packed) for f in fs))
+            self.assertEqual(pack.unpack(packed, out), [os.path.join(out, "av"), os.path.join(out, "d")])
+            ds = dataset.load(os.path.join(out, "d"))
+            self.assertEqual(dataset.check(ds), [])
+            np.testing.assert_allclose(ds.views, ds0.views, atol=2.5e-4)
+            self.assertLessEqual(ds.maps[0, 3, 4, 3], 0.7)
+            self.assertAlmostEqual(float(ds.maps[0, 3, 4, 3]), 0.7, delta=5e-4)  # one float16 step down
+            self.assertAlmostEqual(float(ds.maps[0, 0, 4, 3]), 1 / 3, delta=2.5e-4)
+            # One grasp per painted pixel, the maps' angle (2 phi = atan2(0.8, 0.6)) and opening.
+            g = ds.grasps_of(0)
+            self.assertEqual(len(g), 1)
+            np.testing.assert_allclose(g[0, :2], [3, 4])
+            self.assertAlmostEqual(float(g[0, 2]), 0.5 * np.arctan2(0.8, 0.6), places=3)
+            self.assertAlmostEqual(float(g[0, 3]), 0.7 * 0.2, delta=1e-4)
+            self.assertEqual([m["positives"] for m in ds.meta], [1, 0, 1])
+            self.assertEqual(dataset.split_by_instance(ds.meta), dataset.split_by_instance(ds0.meta))
+            self.assertEqual(metric.evaluate(ds.maps, ds, [0, 1, 2])["accuracy"], 1.0)
+            a = physics.load(os.path.join(out, "av"))
+            np.testing.assert_array_equal(a.pixels, [[1, 2], [2, 2]])
+            np.testing.assert_array_equal(a.views[:, 0, 0], [0.0, 2.0])
+            with open(os.path.join(out, "av", "manifest.json")) as f:
+                self.assertEqual(json.load(f)["attempts"], 2)
+
+    def test_a_painted_quality_stays_painted_in_float16(self):
+        maps = np.zeros((1, 4, 2, 2), np.float32)
+        maps[0, :, 0, 0] = [1e-9, 1.0, 0.0, 0.1]
+        half = pack.to_half(maps, 0, 3)
+        self.assertGreater(float(half[0, 0, 0, 0]), 0)
+
+    def test_refusals_say_why(self):
+        with tempfile.TemporaryDirectory() as root:
+            a, b = os.path.join(root, "a", "x"), os.path.join(root, "b", "x")
+            write_dataset(a)
+            write_dataset(b)
+            with self.assertRaisesRegex(SystemExit, "repeat"):
+                pack.main(["pack", "--data", f"{a},{b}", "--out", os.path.join(root, "p")])
+            os.makedirs(os.path.join(root, "empty"))
+            with self.assertRaisesRegex(SystemExit, "no packed folder"):
+                pack.main(["unpack", os.path.join(root, "empty"), "--out", os.path.join(root, "o")])
+            with self.assertRaisesRegex(SystemExit, "not a packed folder"):
+                pack.main(["unpack", os.path.join(root, "a"), "--out", os.path.join(root, "o")])
+            with self.assertRaisesRegex(SystemExit, "not a sim eval"):
+                pack.main(["pack", "--physics", a, "--out", os.path.join(root, "q")])
+
 
 class Refusals(unittest.TestCase):
     def test_shares_add_up_the_views_counts_largest_first(self):
