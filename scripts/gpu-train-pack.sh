@@ -34,27 +34,8 @@ PACK=$(cd "$PACK" && pwd)
 RUNS=$(cd "$(dirname "$RUNS")" && pwd)/$(basename "$RUNS")
 mkdir -p "$OUT" "$WORK/runs"
 started=$(date +%s)
-# Each packed folder in its own process: xz and float16 -> float32 are single-threaded.
-unpacking=()
-for d in "$PACK"/*/; do
-    name=$(basename "$d")
-    [ -f "$d/manifest.json" ] || continue
-    (mkdir -p "$WORK/p-$name" && ln -sfn "${d%/}" "$WORK/p-$name/$name" &&
-        cd training && python3 -m mvgrasp_train.pack unpack "$WORK/p-$name" --out "$WORK/data") &
-    unpacking+=($!)
-done
-for pid in "${unpacking[@]}"; do wait "$pid" || { echo "unpacking failed" >&2; exit 1; }; done
-joined() { python3 - "$WORK/data" "$1" <<'EOF'
-import json, os, sys
-root, kind = sys.argv[1:]
-found = []
-for name in sorted(os.listdir(root)):
-    with open(os.path.join(root, name, "manifest.json")) as f:
-        if json.load(f)["packed"]["kind"] == kind:
-            found.append(os.path.join(root, name))
-print(",".join(found))
-EOF
-}
+(cd training && python3 -m mvgrasp_train.pack unpack "$PACK" --out "$WORK/data") >"$WORK/unpacked.txt"
+joined() { awk -v kind="$1" '$1 == kind { print $2 }' "$WORK/unpacked.txt" | paste -sd, -; }
 DATA=$(joined dataset)
 PHYSICS=$(joined attempts)
 INIT=$PACK/init

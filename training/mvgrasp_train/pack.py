@@ -24,10 +24,12 @@ regenerate dense labels. A pack keeps what training reads:
     python3 -m mvgrasp_train.pack unpack .gpu/pack --out /tmp/data     # on the GPU machine
 
 `unpack` writes `OUT/NAME` for each folder packed (named by its last path
-part, which must be unique). Numpy and the standard library only.
+part, which must be unique) and prints a line `KIND PATH` for each, KIND
+`dataset` or `attempts`. Numpy and the standard library only.
 """
 
 import argparse
+import concurrent.futures
 import glob
 import io
 import json
@@ -164,39 +166,42 @@ def unpack_attempts(src, dst):
 
 
 def pack(data, attempts, own_only, out):
-    folders = [d.rstrip("/") for d in data + attempts]
-    names = [os.path.basename(d) for d in folders]
+    data, attempts = [d.rstrip("/") for d in data], [d.rstrip("/") for d in attempts]
+    names = [os.path.basename(d) for d in data + attempts]
     if len(set(names)) != len(names):
         raise ValueError(f"folder names repeat: {names}")
     if os.path.exists(out):
         raise ValueError(f"{out} exists")
     os.makedirs(out)
     for d in data:
-        pack_dataset(d, os.path.join(out, os.path.basename(d.rstrip("/"))))
+        pack_dataset(d, os.path.join(out, os.path.basename(d)))
     for d in attempts:
-        pack_attempts(d, os.path.join(out, os.path.basename(d.rstrip("/"))), own_only)
+        pack_attempts(d, os.path.join(out, os.path.basename(d)), own_only)
+
+
+UNPACKERS = {"dataset": unpack_dataset, "attempts": unpack_attempts}
 
 
 def unpack(src, out):
-    """Unpacks every folder of the pack `src` into `out`; returns their paths."""
-    written = []
+    """Unpacks every folder of the pack `src` into `out`, each in its own
+    process (xz and the float16 conversion use one core); returns (kind,
+    path) pairs, kind "dataset" or "attempts"."""
+    jobs = []
     for name in sorted(os.listdir(src)):
         path = os.path.join(src, name, "manifest.json")
         if not os.path.isfile(path):
             continue
         with open(path) as f:
             kind = json.load(f).get("packed", {}).get("kind")
-        target = os.path.join(out, name)
-        if kind == "dataset":
-            unpack_dataset(os.path.join(src, name), target)
-        elif kind == "attempts":
-            unpack_attempts(os.path.join(src, name), target)
-        else:
+        if kind not in UNPACKERS:
             raise ValueError(f"{src}/{name}: not a packed folder")
-        written.append(target)
-    if not written:
+        jobs.append((kind, os.path.join(src, name), os.path.join(out, name)))
+    if not jobs:
         raise ValueError(f"{src}: no packed folder in it")
-    return written
+    with concurrent.futures.ProcessPoolExecutor() as pool:
+        for done in [pool.submit(UNPACKERS[kind], folder, target) for kind, folder, target in jobs]:
+            done.result()
+    return [(kind, target) for kind, _, target in jobs]
 
 
 def main(argv=None):
@@ -217,8 +222,8 @@ def main(argv=None):
             pack(split(args.data), split(args.physics), args.own_only, args.out)
             print(f"{args.out}: {sum(os.path.getsize(f) for f in glob.glob(args.out + '/**', recursive=True) if os.path.isfile(f)) / 1e6:.1f} MB")
         else:
-            for d in unpack(args.pack, args.out):
-                print(d)
+            for kind, path in unpack(args.pack, args.out):
+                print(kind, path)
     except ValueError as e:
         raise SystemExit(str(e))
 

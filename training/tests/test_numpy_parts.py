@@ -389,7 +389,8 @@ class Pack(unittest.TestCase):
                            alternatives=[False, True, False])
             pack.main(["pack", "--data", data, "--physics", attempts, "--own-only", "--out", packed])
             self.assertFalse(any(f == "grasps.npy" for _, _, fs in os.walk(packed) for f in fs))
-            self.assertEqual(pack.unpack(packed, out), [os.path.join(out, "av"), os.path.join(out, "d")])
+            self.assertEqual(pack.unpack(packed, out), [("attempts", os.path.join(out, "av")),
+                                                     ("dataset", os.path.join(out, "d"))])
             ds = dataset.load(os.path.join(out, "d"))
             self.assertEqual(dataset.check(ds), [])
             np.testing.assert_allclose(ds.views, ds0.views, atol=2.5e-4)
