@@ -45,11 +45,7 @@ def load(path, mmap=False):
     paths = [p for p in str(path).split(",") if p]
     if len(paths) > 1:
         return merge([load(p, mmap) for p in paths], paths)
-    with open(os.path.join(path, "manifest.json")) as f:
-        manifest = json.load(f)
-    if manifest.get("format_version") != FORMAT_VERSION:
-        raise ValueError(f"{path}: format_version {manifest.get('format_version')}, "
-                         f"this reader knows {FORMAT_VERSION} (regenerate with `sim datagen`)")
+    manifest = read_manifest(path)
     mode = "r" if mmap else None
     views, maps, grasps, meta = [], [], [], []
     offset = 0
@@ -70,6 +66,17 @@ def load(path, mmap=False):
         maps = maps[:, order]
     grasps = np.concatenate(grasps) if grasps else np.zeros((0, 6), np.float32)
     return Dataset(np.concatenate(views), maps, grasps, meta, manifest)
+
+
+def read_manifest(path):
+    """The `manifest.json` of the dataset folder `path`; ValueError when its
+    format version is not the one this reader knows."""
+    with open(os.path.join(path, "manifest.json")) as f:
+        manifest = json.load(f)
+    if manifest.get("format_version") != FORMAT_VERSION:
+        raise ValueError(f"{path}: format_version {manifest.get('format_version')}, "
+                         f"this reader knows {FORMAT_VERSION} (regenerate with `sim datagen`)")
+    return manifest
 
 
 def merge(parts, names):

@@ -71,10 +71,7 @@ def to_half(maps, quality_channel, width_channel):
 
 
 def pack_dataset(src, dst):
-    with open(os.path.join(src, "manifest.json")) as f:
-        manifest = json.load(f)
-    if manifest.get("format_version") != dataset.FORMAT_VERSION:
-        raise ValueError(f"{src}: format_version {manifest.get('format_version')}, not {dataset.FORMAT_VERSION}")
+    manifest = dataset.read_manifest(src)
     outputs = manifest["contract"]["outputs"]
     os.makedirs(dst)
     for shard in manifest["shards"]:
@@ -99,8 +96,7 @@ def painted_grasps(maps, channels, width_scale_m):
 
 
 def unpack_dataset(src, dst):
-    with open(os.path.join(src, "manifest.json")) as f:
-        manifest = json.load(f)
+    manifest = dataset.read_manifest(src)
     channels = manifest["contract"]["outputs"]
     quality = channels.index("quality")
     cos, sin = channels.index("cos2phi"), channels.index("sin2phi")
@@ -134,10 +130,7 @@ def unpack_dataset(src, dst):
 
 
 def pack_attempts(src, dst, own_only):
-    with open(os.path.join(src, "manifest.json")) as f:
-        manifest = json.load(f)
-    if manifest.get("format") not in physics.FORMATS:
-        raise ValueError(f"{src}: not a sim eval --attempt-views folder")
+    manifest = physics.read_manifest(src)
     os.makedirs(dst)
     kept = 0
     for npy in sorted(glob.glob(os.path.join(src, "attempts_*.npy"))):

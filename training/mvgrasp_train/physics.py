@@ -54,6 +54,20 @@ class Attempts:
         return len(self.held)
 
 
+def read_manifest(d):
+    """The `manifest.json` of the `--attempt-views` folder `d`; ValueError
+    when there is none or its format is not one this reader knows."""
+    path = os.path.join(d, "manifest.json")
+    if not os.path.exists(path):
+        raise ValueError(f"{d}: no manifest.json (not a sim eval --attempt-views folder)")
+    with open(path) as f:
+        manifest = json.load(f)
+    if manifest.get("format") not in FORMATS:
+        raise ValueError(f"{d}: format {manifest.get('format')!r}, not one of {FORMATS} "
+                         "(not a sim eval --attempt-views folder)")
+    return manifest
+
+
 def load(dirs, failures=NETWORK_FAILURES, alternatives=True):
     """The attempts of one or more `--attempt-views` folders (a list or a
     comma-separated string) that held or whose outcome starts with one of
@@ -66,14 +80,7 @@ def load(dirs, failures=NETWORK_FAILURES, alternatives=True):
         dirs = [d for d in dirs.split(",") if d]
     views, pixels, held, records, contract = [], [], [], [], None
     for d in dirs:
-        path = os.path.join(d, "manifest.json")
-        if not os.path.exists(path):
-            raise ValueError(f"{d}: no manifest.json (not a sim eval --attempt-views folder)")
-        with open(path) as f:
-            manifest = json.load(f)
-        if manifest.get("format") not in FORMATS:
-            raise ValueError(f"{d}: format {manifest.get('format')!r}, not one of {FORMATS}")
-        theirs = manifest["contract"]
+        theirs = read_manifest(d)["contract"]
         if contract is None:
             contract = theirs
         elif theirs != contract:

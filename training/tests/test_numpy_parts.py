@@ -371,6 +371,7 @@ class Reader(unittest.TestCase):
         averaged = evaluate_onnx.flip_average(leaning, views)
         self.assertLess(np.abs(averaged[:, 0] - 0.5).max(), 1e-6)
 
+
 class Pack(unittest.TestCase):
     """pack.py: what travels to the GPU machine comes back as a dataset and
     attempt folders that train reads, in float16, the grasps derived from
