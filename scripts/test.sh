@@ -55,7 +55,7 @@ target/debug/sim datagen --scenes 6 --scenes-per-shard 3 --scenarios isolated,pa
     --families box,cylinder,mug,bottle --meshes samples/meshes/u_channel.obj,samples/meshes/hex_nut.stl \
     --out target/datagen-ci
 PYTHONPATH="$pydeps" python3 sim/python/read_dataset.py target/datagen-ci --check
-echo "== training: dataset reader, augmentation, metric (numpy), flip wrapper (onnx); torch tests skip, saying why"
+echo "== training: dataset reader, augmentation, metric (numpy), flip wrapper and compose (onnx); torch tests skip, saying why"
 traindeps=target/pydeps-train
 if ! PYTHONPATH="$traindeps" python3 -c "import numpy, onnx, onnxruntime" >/dev/null 2>&1; then
     python3 -m pip install --quiet --disable-pip-version-check --target "$traindeps" -r training/requirements-ci.txt
