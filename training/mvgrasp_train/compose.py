@@ -31,16 +31,12 @@ import numpy as np
 import onnx
 from onnx import helper, numpy_helper
 
-from .flip_wrap import OUTPUTS_KEY, TOLERANCE, VERSION_KEY, _prefixed, session
+from .flip_wrap import OUTPUTS_KEY, TOLERANCE, VERSION_KEY, channel_order, embed, metadata, session, write_metadata
 
 LEVEL_KEY = "mvgrasp.level_model"
 CONTRACT_KEYS = ("mvgrasp.input_size_px", "mvgrasp.pixel_size_m", "mvgrasp.width_scale_m", "mvgrasp.normalisation",
                  OUTPUTS_KEY)
 EPS = 1e-6  # a view WHERE scores 0 everywhere keeps 0, not a division by zero
-
-
-def _props(model):
-    return {p.key: p.value for p in model.metadata_props}
 
 
 def _opset(model):
@@ -54,58 +50,48 @@ def compose(where, level):
     for name, model in (("where", where), ("level", level)):
         if len(model.graph.input) != 1 or len(model.graph.output) != 1:
             raise ValueError(f"{name}: expected one input (views) and one output (maps)")
-    pw, pl = _props(where), _props(level)
+    pw, pl = metadata(where), metadata(level)
     for key in CONTRACT_KEYS:
         if pw.get(key) != pl.get(key):
             raise ValueError(f"the contracts differ in {key}: where {pw.get(key)!r}, level {pl.get(key)!r}")
-    channels = [c.strip() for c in pw.get(OUTPUTS_KEY, "").split(",")]
-    if len(channels) != 4 or "quality" not in channels:
-        raise ValueError(f"{OUTPUTS_KEY} {pw.get(OUTPUTS_KEY)!r} does not name four channels with quality")
-    if _opset(where) != _opset(level):
-        raise ValueError(f"the opsets differ: where {_opset(where)}, level {_opset(level)}")
+    q = channel_order(pw, "quality").index("quality")
+    opset = _opset(where)
+    if opset != _opset(level):
+        raise ValueError(f"the opsets differ: where {opset}, level {_opset(level)}")
     views, maps = where.graph.input[0].name, where.graph.output[0].name
-    parts = {}
+    split = {}
     nodes, initializers = [], []
-    for prefix, model in (("where/", where), ("level/", level)):
-        n, i = _prefixed(model.graph, prefix)
-        inner_in, inner_out = model.graph.input[0].name, prefix + "maps"
-        for node in n:
-            node.input[:] = [views if x == inner_in else x for x in node.input]
-            node.output[:] = [inner_out if x == model.graph.output[0].name else x for x in node.output]
+    for name, model in (("where", where), ("level", level)):
+        n, i = embed(model.graph, name + "/", views, f"{name}/maps")
         nodes += n
         initializers += i
-        parts[prefix] = inner_out
-    q = channels.index("quality")
+        channels = [f"compose/{name}_{k}" for k in range(4)]
+        nodes.append(helper.make_node("Split", [f"{name}/maps", "compose/split"], channels, axis=1,
+                                      name=f"compose/split_{name}"))
+        split[name] = channels
     initializers.append(numpy_helper.from_array(np.ones(4, np.int64), "compose/split"))
     initializers.append(numpy_helper.from_array(np.float32(EPS), "compose/eps"))
-    where_ch = [f"compose/where_{c}" for c in channels]
-    level_ch = [f"compose/level_{c}" for c in channels]
-    tail = [
-        helper.make_node("Split", [parts["where/"], "compose/split"], where_ch, axis=1, name="compose/split_where"),
-        helper.make_node("Split", [parts["level/"], "compose/split"], level_ch, axis=1, name="compose/split_level"),
-    ]
+    if opset >= 18:  # ReduceMax takes its axes as an input from opset 18 on
+        initializers.append(numpy_helper.from_array(np.array([1, 2, 3], np.int64), "compose/peak_axes"))
 
     def peak(x, out):
-        if _opset(where) >= 18:
-            axes = "compose/peak_axes"
-            if not any(t.name == axes for t in initializers):
-                initializers.append(numpy_helper.from_array(np.array([1, 2, 3], np.int64), axes))
-            return helper.make_node("ReduceMax", [x, axes], [out], keepdims=1, name=out)
+        if opset >= 18:
+            return helper.make_node("ReduceMax", [x, "compose/peak_axes"], [out], keepdims=1, name=out)
         return helper.make_node("ReduceMax", [x], [out], axes=[1, 2, 3], keepdims=1, name=out)
 
-    tail += [
-        peak(where_ch[q], "compose/where_peak"),
-        peak(level_ch[q], "compose/level_peak"),
+    outs = list(split["where"])
+    outs[q] = "compose/quality"
+    nodes += [
+        peak(split["where"][q], "compose/where_peak"),
+        peak(split["level"][q], "compose/level_peak"),
         helper.make_node("Add", ["compose/where_peak", "compose/eps"], ["compose/where_peak_eps"],
                          name="compose/where_peak_eps"),
         helper.make_node("Div", ["compose/level_peak", "compose/where_peak_eps"], ["compose/scale"],
                          name="compose/scale"),
-        helper.make_node("Mul", [where_ch[q], "compose/scale"], ["compose/quality"], name="compose/quality"),
+        helper.make_node("Mul", [split["where"][q], "compose/scale"], ["compose/quality"], name="compose/quality"),
+        helper.make_node("Concat", outs, [maps], axis=1, name="compose/maps"),
     ]
-    outs = list(where_ch)
-    outs[q] = "compose/quality"
-    tail.append(helper.make_node("Concat", outs, [maps], axis=1, name="compose/maps"))
-    graph = helper.make_graph(nodes + tail, where.graph.name + "+level", list(where.graph.input),
+    graph = helper.make_graph(nodes, where.graph.name + "+level", list(where.graph.input),
                               list(where.graph.output), initializers)
     out = helper.make_model(graph, opset_imports=list(where.opset_import), producer_name="mvgrasp_train",
                             ir_version=max(where.ir_version, level.ir_version))
@@ -113,9 +99,7 @@ def compose(where, level):
     level_version = pl.get(VERSION_KEY, "unversioned")
     props[LEVEL_KEY] = level_version
     props[VERSION_KEY] = f"{pw.get(VERSION_KEY, 'unversioned')}+level({level_version})"
-    for key, value in props.items():
-        entry = out.metadata_props.add()
-        entry.key, entry.value = key, value
+    write_metadata(out, props)
     onnx.checker.check_model(out)
     return out
 
@@ -131,9 +115,9 @@ def expected(where_maps, level_maps, quality=0):
 
 def check(where, level, composed, views):
     """Largest |composed(views) - expected(where(views), level(views))|."""
-    channels = [c.strip() for c in _props(where)[OUTPUTS_KEY].split(",")]
+    q = channel_order(metadata(where), "quality").index("quality")
     run = [session(m.SerializeToString()).run(["maps"], {"views": views})[0] for m in (where, level, composed)]
-    return float(np.abs(run[2] - expected(run[0], run[1], channels.index("quality"))).max())
+    return float(np.abs(run[2] - expected(run[0], run[1], q)).max())
 
 
 def main(argv=None):
@@ -152,7 +136,7 @@ def main(argv=None):
     worst = check(where, level, composed, views)
     onnx.save(composed, args.out)
     print(json.dumps({"onnx": args.out, "max_abs_diff": worst, "tolerance": TOLERANCE,
-                      "model_version": _props(composed)[VERSION_KEY]}))
+                      "model_version": metadata(composed)[VERSION_KEY]}))
     if worst > TOLERANCE:
         sys.exit(f"the composed model differs from the two files run apart by {worst} > {TOLERANCE}")
 

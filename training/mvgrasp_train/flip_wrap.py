@@ -29,13 +29,35 @@ TOLERANCE = 1e-5
 _END = np.iinfo(np.int64).min  # a Slice end past the start of the axis, walking backwards
 
 
-def _prefixed(graph, prefix):
-    """The graph's nodes with every internal name prefixed, so that the
-    wrapper's own names never clash; the input and output keep theirs."""
-    keep = {graph.input[0].name, graph.output[0].name}
+def metadata(model):
+    """The file's metadata as a dict."""
+    return {p.key: p.value for p in model.metadata_props}
+
+
+def write_metadata(model, props):
+    """Appends `props` to the file's metadata."""
+    for key, value in props.items():
+        entry = model.metadata_props.add()
+        entry.key, entry.value = key, value
+
+
+def channel_order(props, needed):
+    """The output channels `mvgrasp.outputs` names, in order; ValueError
+    unless it names four, `needed` among them."""
+    channels = [c.strip() for c in props.get(OUTPUTS_KEY, "").split(",")]
+    if len(channels) != 4 or needed not in channels:
+        raise ValueError(f"{OUTPUTS_KEY} {props.get(OUTPUTS_KEY)!r} does not name four channels with {needed}")
+    return channels
+
+
+def embed(graph, prefix, views, maps):
+    """The graph's nodes and initializers to place inside a larger graph:
+    every internal name prefixed, so that the host's own names never clash,
+    the input read from `views` and the output written to `maps`."""
+    inner = {graph.input[0].name: views, graph.output[0].name: maps}
 
     def rename(name):
-        return name if (not name or name in keep) else prefix + name
+        return inner.get(name, prefix + name) if name else name
 
     nodes = []
     for node in graph.node:
@@ -61,18 +83,13 @@ def wrap(model):
     graph = model.graph
     if len(graph.input) != 1 or len(graph.output) != 1:
         raise ValueError("expected one input (views) and one output (maps)")
-    props = {p.key: p.value for p in model.metadata_props}
+    props = metadata(model)
     if FLIPS_KEY in props:
         raise ValueError(f"already averages {props[FLIPS_KEY]} flips")
-    channels = [c.strip() for c in props.get(OUTPUTS_KEY, "").split(",")]
-    if len(channels) != 4 or "sin2phi" not in channels:
-        raise ValueError(f"{OUTPUTS_KEY} {props.get(OUTPUTS_KEY)!r} does not name four channels with sin2phi")
+    channels = channel_order(props, "sin2phi")
     views, maps = graph.input[0].name, graph.output[0].name
-    nodes, initializers = _prefixed(graph, "net/")
     inner_in, inner_out = "flip/stacked", "flip/net_maps"
-    for node in nodes:
-        node.input[:] = [inner_in if n == views else n for n in node.input]
-        node.output[:] = [inner_out if n == maps else n for n in node.output]
+    nodes, initializers = embed(graph, "net/", inner_in, inner_out)
 
     def const(name, values, dtype=np.int64):
         initializers.append(numpy_helper.from_array(np.asarray(values, dtype=dtype), name))
@@ -118,9 +135,7 @@ def wrap(model):
                             ir_version=model.ir_version)
     props[FLIPS_KEY] = "4"
     props[VERSION_KEY] = props.get(VERSION_KEY, "unversioned") + "+flips"
-    for key, value in props.items():
-        entry = out.metadata_props.add()
-        entry.key, entry.value = key, value
+    write_metadata(out, props)
     onnx.checker.check_model(out)
     if out.graph.input[0].type.tensor_type.elem_type != TensorProto.FLOAT:
         raise ValueError("expected float views")
@@ -158,7 +173,7 @@ def main(argv=None):
     worst = check(base, wrapped, views)
     onnx.save(wrapped, args.out)
     print(json.dumps({"onnx": args.out, "max_abs_diff": worst, "tolerance": TOLERANCE,
-                      "model_version": {p.key: p.value for p in wrapped.metadata_props}[VERSION_KEY]}))
+                      "model_version": metadata(wrapped)[VERSION_KEY]}))
     if worst > TOLERANCE:
         sys.exit(f"the wrapped model differs from four passes by {worst} > {TOLERANCE}")
 

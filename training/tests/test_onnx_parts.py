@@ -174,9 +174,7 @@ class ComposeTest(unittest.TestCase):
         np.testing.assert_allclose(self.run_model(same), self.run_model(self.where), atol=1e-5)
 
     def test_metadata_names_both(self):
-        props = {p.key: p.value for p in self.composed.metadata_props}
-        where = {p.key: p.value for p in self.where.metadata_props}
-        level = {p.key: p.value for p in self.level.metadata_props}
+        props, where, level = (self.c.metadata(m) for m in (self.composed, self.where, self.level))
         self.assertEqual(props[self.c.LEVEL_KEY], level["mvgrasp.model_version"])
         self.assertEqual(props["mvgrasp.model_version"],
                          f"{where['mvgrasp.model_version']}+level({level['mvgrasp.model_version']})")
