@@ -47,6 +47,16 @@ pub const FORMAT_VERSION: u32 = 2;
 /// versions are in models/HISTORY.md).
 pub const DATA_VERSION: &str = "sim-6";
 
+/// The data version of labels made with `targets`: [`DATA_VERSION`], with
+/// `+pad-Nmm` where the pads give (`TargetConfig::pad_compliance_m`).
+pub fn data_version_of(targets: &TargetConfig) -> String {
+    if targets.pad_compliance_m > 0.0 {
+        format!("{DATA_VERSION}+pad-{}mm", targets.pad_compliance_m * 1000.0)
+    } else {
+        DATA_VERSION.to_owned()
+    }
+}
+
 /// What to generate.
 #[derive(Debug, Clone)]
 pub struct DatagenConfig {
@@ -229,7 +239,7 @@ pub fn generate(
         field: "contract",
         reason: e.to_string(),
     })?;
-    let gripper = GripperModel::robotiq_2f_140();
+    let gripper = config.targets.gripper();
     let bar = if progress {
         ProgressBar::new(config.scenes)
     } else {
@@ -336,6 +346,11 @@ fn write_manifest(
     if let Some(frames_from) = frames_from {
         manifest["frames_from"] = frames_from;
     }
+    // Only where the pads give: sim-6 manifests stay as they were, so
+    // folders made before and after this key can still be trained on together.
+    if gripper.pad_compliance_m > 0.0 {
+        manifest["gripper"]["pad_compliance_m"] = serde_json::json!(gripper.pad_compliance_m);
+    }
     let path = out.join("manifest.json");
     let text = serde_json::to_string_pretty(&manifest).map_err(|e| file_error(&path, e))?;
     std::fs::write(&path, text).map_err(|e| file_error(&path, e))
@@ -380,8 +395,8 @@ impl FrameLabeller {
         Ok(Self {
             out: out.to_path_buf(),
             contract,
+            gripper: config.targets.gripper(),
             config,
-            gripper: GripperModel::robotiq_2f_140(),
             every,
             frames_from,
             report: Mutex::new(DatagenReport::default()),

@@ -386,6 +386,71 @@ mod grasp_labels {
         assert_eq!(label.reason(), "object: palm");
     }
 
+    /// A 12-sided prism of radius 4 cm and height 10 cm standing at the
+    /// origin (a mug's body is such a polygon), vertices at 0, 30, ... degrees.
+    fn prism_scene() -> Scene {
+        let ring = |z: f32| {
+            (0..12).map(move |k| {
+                let a = (k as f32 * 30.0).to_radians();
+                Vector::new(0.04 * a.cos(), 0.04 * a.sin(), z)
+            })
+        };
+        let points: Vec<Vector> = ring(0.0).chain(ring(0.10)).collect();
+        let model = ObjectModel::from_parts(
+            Family::Mug,
+            vec![(Pose::IDENTITY, SharedShape::convex_hull(&points).expect("a hull"))],
+        );
+        one_object(0.0, model, 0.0, 0.0)
+    }
+
+    #[test]
+    fn a_compliant_pad_on_a_polygons_vertex_pushes_along_its_own_normal() {
+        // Closing at 0-29 degrees from a vertex: the pads first touch the
+        // vertices at 0 and 180 degrees, between faces whose normals lie
+        // 15 degrees either side of them. Where the first ray lands on the
+        // face more than 20 degrees off, today's label calls the grasp not
+        // antipodal; a pad that gives 3 mm feels both faces and pushes
+        // along the mean of their normals.
+        let scene = prism_scene();
+        let stiff = GripperModel::robotiq_2f_140();
+        let compliant = GripperModel {
+            pad_compliance_m: 0.003,
+            ..stiff
+        };
+        let mut turned_away = 0;
+        for deg in 0..30 {
+            let a = f64::from(deg).to_radians();
+            let grasp = top_down_grasp(0.0, 0.0, 0.07, V3::new(a.cos(), a.sin(), 0.0));
+            let (before, after) = (
+                label_grasp(&scene, 0, &grasp, 0.085, &stiff),
+                label_grasp(&scene, 0, &grasp, 0.085, &compliant),
+            );
+            if let GraspLabel::NotAntipodal { worst_angle_deg } = before {
+                assert!(
+                    worst_angle_deg > 20.0 && worst_angle_deg < 31.0,
+                    "{deg}: {worst_angle_deg}"
+                );
+                assert!(after.is_positive(), "{deg} degrees: {after:?}");
+                turned_away += 1;
+            } else {
+                assert!(before.is_positive(), "{deg} degrees: {before:?}");
+            }
+        }
+        assert!(turned_away >= 3, "{turned_away}");
+        // A box's 90 degree edge is no polygon's: closing along the diagonal
+        // stays not antipodal with the compliant pad.
+        let boxed = box_scene([0.06, 0.04, 0.10]);
+        let diagonal = V3::new(1.0, 1.0, 0.0).normalize();
+        let label = label_grasp(
+            &boxed,
+            0,
+            &top_down_grasp(0.0, 0.0, 0.08, diagonal),
+            0.07,
+            &compliant,
+        );
+        assert!(matches!(label, GraspLabel::NotAntipodal { .. }), "{label:?}");
+    }
+
     #[test]
     fn a_neighbour_in_the_way_is_a_collision() {
         let mut scene = box_scene([0.06, 0.04, 0.10]);
@@ -752,6 +817,51 @@ fn datagen_refuses_a_zero_candidate_stride_or_no_angles_and_denser_candidates_fi
     assert!(
         dense > 4 * sparse,
         "every pixel at twice the angles: {dense} vs {sparse}"
+    );
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn datagen_refuses_a_pad_compliance_outside_0_to_20_mm_and_records_it() {
+    use mvgrasp_sim::Error;
+    use mvgrasp_sim::dataset::{DATA_VERSION, DatagenConfig, data_version_of, generate};
+    use mvgrasp_sim::targets::TargetConfig;
+
+    let out = std::env::temp_dir().join(format!("mvgrasp-datagen-pad-{}", std::process::id()));
+    let contract = MomentsNet::default().contract().clone();
+    let config = |pad_compliance_m| DatagenConfig {
+        targets: TargetConfig {
+            pad_compliance_m,
+            ..TargetConfig::default()
+        },
+        ..small_datagen(1, 41, Scenario::Isolated, &[Family::Mug])
+    };
+    for bad in [-0.001, 0.025, f32::NAN] {
+        let _ = std::fs::remove_dir_all(&out);
+        match generate(&out, &contract, &config(bad), false) {
+            Err(Error::Invalid {
+                field: "pad compliance",
+                ..
+            }) => {}
+            other => panic!("{bad}: {other:?}"),
+        }
+        assert!(!out.exists(), "nothing written for a refused compliance");
+    }
+    assert_eq!(data_version_of(&TargetConfig::default()), DATA_VERSION);
+    let pad = TargetConfig {
+        pad_compliance_m: 0.003,
+        ..TargetConfig::default()
+    };
+    assert_eq!(data_version_of(&pad), format!("{DATA_VERSION}+pad-3mm"));
+    let manifest = datagen_into(&out, &config(0.003));
+    let recorded = manifest["gripper"]["pad_compliance_m"].as_f64().unwrap();
+    assert!((recorded - 0.003).abs() < 1e-6, "{recorded}");
+    // Without compliance the manifest's gripper is sim-6's, key for key.
+    let manifest = datagen_into(&out, &config(0.0));
+    assert!(
+        manifest["gripper"].get("pad_compliance_m").is_none(),
+        "{}",
+        manifest["gripper"]
     );
     let _ = std::fs::remove_dir_all(&out);
 }
