@@ -51,7 +51,11 @@ pub const DATA_VERSION: &str = "sim-6";
 /// `+pad-Nmm` where the pads give (`TargetConfig::pad_compliance_m`).
 pub fn data_version_of(targets: &TargetConfig) -> String {
     if targets.pad_compliance_m > 0.0 {
-        format!("{DATA_VERSION}+pad-{}mm", targets.pad_compliance_m * 1000.0)
+        // In tenths of a millimetre, so that 0.1 mm reads "0.1", not f32's "0.099999994".
+        format!(
+            "{DATA_VERSION}+pad-{}mm",
+            (targets.pad_compliance_m * 1e4).round() / 10.0
+        )
     } else {
         DATA_VERSION.to_owned()
     }

@@ -853,6 +853,11 @@ fn datagen_refuses_a_pad_compliance_outside_0_to_20_mm_and_records_it() {
         ..TargetConfig::default()
     };
     assert_eq!(data_version_of(&pad), format!("{DATA_VERSION}+pad-3mm"));
+    let tenth = TargetConfig {
+        pad_compliance_m: 0.0001,
+        ..TargetConfig::default()
+    };
+    assert_eq!(data_version_of(&tenth), format!("{DATA_VERSION}+pad-0.1mm"));
     let manifest = datagen_into(&out, &config(0.003));
     let recorded = manifest["gripper"]["pad_compliance_m"].as_f64().unwrap();
     assert!((recorded - 0.003).abs() < 1e-6, "{recorded}");
