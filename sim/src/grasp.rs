@@ -52,12 +52,14 @@
 //! yaws, every grasp either label passes or calls not antipodal tried in
 //! physics; 12 scenes per family). Seeds 720000: positives 929 -> 1,009,
 //! held 0.884 -> 0.895; seeds 730000: 914 -> 994, 0.876 -> 0.886. On the
-//! planner's own grasps (`sim eval`, seeds 900000, `all` at 0.1, the
-//! default model, 1,864 physics trials): positives 1,492 -> 1,624, held
-//! 0.956 -> 0.958; the grasps still called not antipodal hold 0.77 instead
-//! of 0.85; mugs' positives 0.81 -> 0.87. The first ray's normal on a
-//! polygonal body (a mug's 12 wall segments) is one face's, up to 30
-//! degrees from the other face the flat pad also touches.
+//! planner's own grasps (`sim eval`, `all` at 0.1, the default model; the
+//! same trials, only their labels differ): seeds 900000, positives 1,492
+//! -> 1,624, held 0.956 -> 0.958; seeds 640000, 1,430 -> 1,577, held 0.963
+//! -> 0.959; the grasps still called not antipodal hold 0.77 / 0.71
+//! instead of 0.85 / 0.80; mugs' positives 0.81 -> 0.87 (900000). The
+//! first ray's normal on a polygonal body (a mug's 12 wall segments) is
+//! one face's, up to 30 degrees from the other face the flat pad also
+//! touches.
 //!
 //! The score (for positives) combines the paper's terms: the share of pad
 //! rays that meet the object (how much of the object is between the
