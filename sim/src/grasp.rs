@@ -328,7 +328,6 @@ pub fn label_grasp(
 
     // 2. Close: rays from each pad's inner face along the closing direction.
     let closing = grasp.rotation * Vector::X;
-    let mut contact = [(f32::INFINITY, Vector::ZERO); 2];
     // Every ray of each pad that meets the object: (distance, normal).
     let mut pad_hits = [[(f32::INFINITY, Vector::ZERO); GRID * GRID]; 2];
     let mut object_hits = 0usize;
@@ -354,9 +353,6 @@ pub fn label_grasp(
                     Some(i) if i == target => {
                         object_hits += 1;
                         pad_hits[k][a * GRID + b] = (nearest.0, nearest.2);
-                        if nearest.0 < contact[k].0 {
-                            contact[k] = (nearest.0, nearest.2);
-                        }
                     }
                     Some(i) => {
                         return GraspLabel::Collision {
@@ -369,6 +365,13 @@ pub fn label_grasp(
             }
         }
     }
+    // Each pad's first contact: its nearest ray (the first of equals, in grid order).
+    let mut contact = pad_hits.map(|rays| {
+        rays.into_iter()
+            .fold((f32::INFINITY, Vector::ZERO), |first, ray| {
+                if ray.0 < first.0 { ray } else { first }
+            })
+    });
     if contact.iter().any(|(t, _)| !t.is_finite()) {
         return GraspLabel::Missed;
     }
