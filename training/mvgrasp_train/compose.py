@@ -24,14 +24,14 @@ run apart (`check`). It costs both networks' time.
 """
 
 import argparse
-import json
 import sys
 
 import numpy as np
 import onnx
 from onnx import helper, numpy_helper
 
-from .flip_wrap import OUTPUTS_KEY, TOLERANCE, VERSION_KEY, channel_order, embed, metadata, session, write_metadata
+from .flip_wrap import (OUTPUTS_KEY, TOLERANCE, VERSION_KEY, channel_order, embed, metadata, probe_views, save_checked,
+                        session, write_metadata)
 
 LEVEL_KEY = "mvgrasp.level_model"
 CONTRACT_KEYS = ("mvgrasp.input_size_px", "mvgrasp.pixel_size_m", "mvgrasp.width_scale_m", "mvgrasp.normalisation",
@@ -131,14 +131,8 @@ def main(argv=None):
         composed = compose(where, level)
     except ValueError as e:
         sys.exit(f"compose: {e}")
-    size = where.graph.input[0].type.tensor_type.shape.dim[2].dim_value
-    views = np.random.default_rng(0).uniform(0.0, 1.0, (5, 1, size, size)).astype(np.float32)
-    worst = check(where, level, composed, views)
-    onnx.save(composed, args.out)
-    print(json.dumps({"onnx": args.out, "max_abs_diff": worst, "tolerance": TOLERANCE,
-                      "model_version": metadata(composed)[VERSION_KEY]}))
-    if worst > TOLERANCE:
-        sys.exit(f"the composed model differs from the two files run apart by {worst} > {TOLERANCE}")
+    worst = check(where, level, composed, probe_views(where))
+    save_checked(composed, args.out, worst, "the composed model differs from the two files run apart")
 
 
 if __name__ == "__main__":

@@ -161,6 +161,23 @@ def check(base, wrapped, views):
     return float(np.abs(got - expected).max())
 
 
+def probe_views(model, n=5):
+    """`n` seeded random views of `model`'s input size, to check a file made from it."""
+    size = model.graph.input[0].type.tensor_type.shape.dim[2].dim_value
+    return np.random.default_rng(0).uniform(0.0, 1.0, (n, 1, size, size)).astype(np.float32)
+
+
+def save_checked(model, path, worst, what):
+    """Writes `model` to `path`, prints its check as JSON, and exits with
+    an error when `worst` (its largest difference from what it was made
+    from) is over TOLERANCE; `what` names the two sides in that error."""
+    onnx.save(model, path)
+    print(json.dumps({"onnx": path, "max_abs_diff": worst, "tolerance": TOLERANCE,
+                      "model_version": metadata(model)[VERSION_KEY]}))
+    if worst > TOLERANCE:
+        sys.exit(f"{what} by {worst} > {TOLERANCE}")
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("model")
@@ -168,14 +185,8 @@ def main(argv=None):
     args = p.parse_args(argv)
     base = onnx.load(args.model)
     wrapped = wrap(base)
-    size = base.graph.input[0].type.tensor_type.shape.dim[2].dim_value
-    views = np.random.default_rng(0).uniform(0.0, 1.0, (5, 1, size, size)).astype(np.float32)
-    worst = check(base, wrapped, views)
-    onnx.save(wrapped, args.out)
-    print(json.dumps({"onnx": args.out, "max_abs_diff": worst, "tolerance": TOLERANCE,
-                      "model_version": metadata(wrapped)[VERSION_KEY]}))
-    if worst > TOLERANCE:
-        sys.exit(f"the wrapped model differs from four passes by {worst} > {TOLERANCE}")
+    worst = check(base, wrapped, probe_views(base))
+    save_checked(wrapped, args.out, worst, "the wrapped model differs from four passes")
 
 
 if __name__ == "__main__":
