@@ -26,7 +26,10 @@
 # weighted $POSITIVE_WEIGHT times (default 10; 1 is the paper's plain MSE;
 # models/HISTORY.md has the measurement), plus $RANK_WEIGHT times the rank loss
 # (default 0: off; 0.01 lifted view accuracy 3 points on this CPU but
-# cleared fewer objects in physics, models/HISTORY.md). ARCH: paper, narrow,
+# cleared fewer objects in physics, models/HISTORY.md), under $SYMMETRIES
+# (default gravity: front and side views only mirrored left-right, so the
+# table stays below; all: the 8 symmetries of the square for every view, as
+# stage 1 of the model card was trained). ARCH: paper, narrow,
 # skip. Runs land in $DATA/runs/ARCH. DEVICE (default cuda) = cpu runs the
 # same steps on a CPU, small, to check the script before spending device time.
 set -euo pipefail
@@ -39,6 +42,7 @@ SEED0=${SEED0:-200000}
 DATA_VERSION=${DATA_VERSION:-sim-6}
 POSITIVE_WEIGHT=${POSITIVE_WEIGHT:-10}
 RANK_WEIGHT=${RANK_WEIGHT:-0}
+SYMMETRIES=${SYMMETRIES:-gravity}
 DEVICE=${DEVICE:-cuda}
 SCENARIOS=${SCENARIOS:-isolated,packed,pile,clutter}
 DATAGEN_ARGS=${DATAGEN_ARGS:-}
@@ -83,7 +87,7 @@ train)
         (cd training && PYTHONUNBUFFERED=1 python3 -m mvgrasp_train.train --data "$data" --out "$DATA/runs/$arch" \
             --architecture "$arch" --device "$DEVICE" --batch 64 --lr 1e-3 --schedule cosine \
             --epochs 1000 --minutes "$minutes" --eval-every 4 --hold-out-families bowl \
-            --positive-weight "$POSITIVE_WEIGHT" --rank-weight "$RANK_WEIGHT" \
+            --positive-weight "$POSITIVE_WEIGHT" --rank-weight "$RANK_WEIGHT" --symmetries "$SYMMETRIES" \
             >"$OUT/train-$arch.log" 2>&1) &
         pids+=($!)
     done

@@ -6,7 +6,11 @@ Every transform keeps views and targets consistent:
   are metric and its depth axis is untouched, so a mirrored view is the
   view of the mirrored object; the angle channels follow: mirroring u sends
   phi to -phi (sin 2phi flips sign), a transpose sends phi to pi/2 - phi
-  (cos 2phi flips sign).
+  (cos 2phi flips sign). In a front or side view image v points down
+  (gravity, towards the table: `core::view::orthographic`), and the labels
+  refuse grasps whose hand would meet the table there. Only the identity
+  and the mirror of u keep the table below; `symmetry_mask(view, "gravity")`
+  limits those views to them (top views look along gravity and keep all 8).
 * a small scale change about the centre (nearest-neighbour on the targets),
   with the opening channel scaled by the same factor;
 * depth noise and dropout / clipping on the view only: Gaussian noise on
@@ -45,6 +49,25 @@ def symmetry(view, maps, k):
     return view, maps
 
 
+SYMMETRY_MODES = ("all", "gravity")
+ALL_SYMMETRIES = 7  # bits 1, 2, 4: mirror u, mirror v, transpose
+KEEP_DOWN = 1  # mirror u only: image v stays the direction of gravity
+
+
+def symmetry_mask(view, mode):
+    """The bits of the symmetry index a view may use: all for a `top` view
+    or in mode "all"; in mode "gravity", the mirror of u alone for the
+    views whose image v is gravity (front, side). ValueError for another
+    mode, or in mode "gravity" for a view that is none of the three."""
+    if mode not in SYMMETRY_MODES:
+        raise ValueError(f"symmetries {mode!r}, not one of {SYMMETRY_MODES}")
+    if mode == "all" or view == "top":
+        return ALL_SYMMETRIES
+    if view in ("front", "side"):
+        return KEEP_DOWN
+    raise ValueError(f"view {view!r} is not top, front or side: its direction of gravity is unknown")
+
+
 def rescale(view, maps, factor):
     """Zooms about the centre by `factor` (>1 enlarges), opening channel scaled alike."""
     l = view.shape[-1]
@@ -72,9 +95,11 @@ def corrupt(view, rng, noise=0.01, dropout=0.02, clip_share=0.3):
     return view
 
 
-def augment(view, maps, rng, scale=0.05):
-    """One random augmentation of a view [1,L,L] and its maps [4,L,L]."""
-    view, maps = symmetry(view, maps, int(rng.integers(8)))
+def augment(view, maps, rng, scale=0.05, mask=ALL_SYMMETRIES):
+    """One random augmentation of a view [1,L,L] and its maps [4,L,L]; the
+    symmetry drawn is ANDed with `mask` (`symmetry_mask`), so the random
+    draws are the same whatever the mask."""
+    view, maps = symmetry(view, maps, int(rng.integers(8)) & mask)
     if scale > 0:
         view, maps = rescale(view, maps, float(rng.uniform(1 - scale, 1 + scale)))
     return corrupt(view, rng), maps

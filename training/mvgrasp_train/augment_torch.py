@@ -66,10 +66,14 @@ def corrupt(views, generator, noise=0.01, dropout=0.02, clip_share=0.3):
     return torch.where(surface, noisy, torch.zeros_like(noisy))
 
 
-def augment(views, maps, generator, scale=0.05):
-    """One random augmentation of each view [B,1,L,L] and its maps [B,4,L,L]."""
+def augment(views, maps, generator, scale=0.05, mask=None):
+    """One random augmentation of each view [B,1,L,L] and its maps [B,4,L,L];
+    sample b's symmetry is ANDed with mask[b] (int64 [B], augment.symmetry_mask;
+    None: all 8), the draws the same whatever the mask."""
     b, device = views.shape[0], views.device
     k = torch.randint(0, 8, (b,), generator=generator, device=device)
+    if mask is not None:
+        k = k & mask
     views, maps = symmetry(views, maps, k)
     if scale > 0:
         u = torch.rand(b, generator=generator, device=device, dtype=torch.float64)

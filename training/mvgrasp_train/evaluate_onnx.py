@@ -2,7 +2,7 @@
 
     python3 -m mvgrasp_train.evaluate_onnx --data DATASET MODEL.onnx [MODEL.onnx ...] \
         [--hold-out-families bowl] [--scenarios isolated,packed] [--families mug] [--all-views | --training-views] \
-        [--misses MISSES.png [--misses-count 6]] [--smoothing-sigma-px 1.0] [--flips] [--object-threshold 0.1] \
+        [--misses MISSES.png [--misses-count 6]] [--smoothing-sigma-px 1.0] [--flips [four|mirror]] [--object-threshold 0.1] \
         [--angle-limit-deg 30] [--min-step 1]
 
 Runs each model through onnxruntime (CPU) on the held-out instances of
@@ -17,6 +17,9 @@ is 1.0 px; `metric.smooth_quality`); the default, 0, is the paper's metric
 on the network's raw output. `--flips` averages each view's maps with
 those of its three flips, flipped back (`flip_average`): test-time
 augmentation at four times the inference, which the planner does not do.
+`--flips mirror` averages each view with its left-right mirror only (two
+passes), the flips that keep the table below a front or side view, for
+networks trained with `train --symmetries gravity`.
 Use it to compare models trained on different data on the same views: a
 model never saw the instances of another dataset made with other seeds, so
 on a dataset generated with seeds no model trained on, `--all-views` counts
@@ -55,7 +58,14 @@ import numpy as np
 from . import dataset, metric
 
 
-def predict(path, views, batch=256, sigma_px=0.0, flips=False):
+FLIP_SETS = {
+    # (up-down, left-right) per pass
+    "four": ((False, False), (False, True), (True, False), (True, True)),
+    "mirror": ((False, False), (False, True)),
+}
+
+
+def predict(path, views, batch=256, sigma_px=0.0, flips=None):
     import onnxruntime
     session = onnxruntime.InferenceSession(path, providers=["CPUExecutionProvider"])
 
@@ -63,24 +73,25 @@ def predict(path, views, batch=256, sigma_px=0.0, flips=False):
         return np.concatenate([session.run(["maps"], {"views": np.ascontiguousarray(v[i:i + batch])})[0]
                                for i in range(0, len(v), batch)])
 
-    out = flip_average(run, views) if flips else run(views)
+    out = flip_average(run, views, flips) if flips else run(views)
     return metric.smooth_quality(out, sigma_px)
 
 
-def flip_average(run, views):
+def flip_average(run, views, flips="four"):
     """The maps `run` gives for `views` averaged over each view and its three
-    flips (left-right, up-down, both), every map flipped back. A single flip
+    flips (left-right, up-down, both), every map flipped back; with `flips`
+    "mirror", over each view and its left-right mirror only. A single flip
     mirrors the grasp angle, phi -> -phi, so its sin 2phi changes sign; the
-    double flip (a half turn) keeps it. Costs four passes."""
-    total = None
-    for flip_y, flip_x in ((False, False), (False, True), (True, False), (True, True)):
+    double flip (a half turn) keeps it. Costs a pass per flip."""
+    total, passes = None, FLIP_SETS[flips]
+    for flip_y, flip_x in passes:
         axes = tuple(a for a, f in ((2, flip_y), (3, flip_x)) if f)
         maps = np.array(run(np.ascontiguousarray(np.flip(views, axes))), np.float32)
         maps = np.flip(maps, axes).copy()
         if flip_y != flip_x:
             maps[:, 2] *= -1.0
         total = maps if total is None else total + maps
-    return total / 4.0
+    return total / float(len(passes))
 
 
 def scored_views(meta, all_views=False, training_views=False):
@@ -137,8 +148,9 @@ def main(argv=None):
                    help="a prediction matches a positive within this angle (the paper's: 30)")
     p.add_argument("--min-step", type=int, default=0,
                    help="only views of episode frames after this many attempts (sim eval --label-frames)")
-    p.add_argument("--flips", action="store_true",
-                   help="average each view's maps with its three flips' (4 passes; the planner does one)")
+    p.add_argument("--flips", nargs="?", const="four", choices=sorted(FLIP_SETS),
+                   help="average each view's maps with its three flips' (four, 4 passes) or its left-right "
+                        "mirror's (mirror, 2 passes); the planner does one pass")
     args = p.parse_args(argv)
     ds = dataset.load(args.data, mmap=True)
     held = scored_views(ds.meta, args.all_views, args.training_views)

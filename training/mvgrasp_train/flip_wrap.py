@@ -1,6 +1,6 @@
 """Wraps an exported grasp network so that one call averages four flips.
 
-    python3 -m mvgrasp_train.flip_wrap IN.onnx OUT.onnx
+    python3 -m mvgrasp_train.flip_wrap IN.onnx OUT.onnx [--flips four|mirror]
 
 The wrapped graph stacks each view with its left-right, up-down and double
 flip into one batch of 4B, runs the original network once on it, flips each
@@ -10,7 +10,10 @@ four. It is `evaluate_onnx.flip_average` inside the file, so the service,
 `sim eval` and `evaluate_onnx` use it with no option of their own: the same
 `views` -> `maps` interface and contract, at four times the network's work.
 The metadata gains `mvgrasp.test_time_flips` = 4 and the model version a
-`+flips` suffix. Only onnx is needed (no PyTorch); the output is checked
+`+flips` suffix. `--flips mirror` averages the view and its left-right
+mirror only (2 passes, `test_time_flips` = 2, suffix `+mirror`): the
+flips that keep the table below a front or side view, for networks
+trained with `train --symmetries gravity`. Only onnx is needed (no PyTorch); the output is checked
 against the four passes run separately (`check`).
 """
 
@@ -76,17 +79,23 @@ def embed(graph, prefix, views, maps):
     return nodes, initializers
 
 
-def wrap(model):
-    """A new ModelProto: `model` run on a view and its three flips, maps
-    flipped back and averaged. `model` must map `[B, 1, L, L]` to
-    `[B, 4, L, L]` (one input, one output) and not be wrapped already."""
+def wrap(model, flips="four"):
+    """A new ModelProto: `model` run on a view and its three flips (`flips`
+    "four") or its left-right mirror ("mirror"), maps flipped back and
+    averaged. `model` must map `[B, 1, L, L]` to `[B, 4, L, L]` (one input,
+    one output) and not be wrapped already."""
+    from .evaluate_onnx import FLIP_SETS
+
     graph = model.graph
     if len(graph.input) != 1 or len(graph.output) != 1:
         raise ValueError("expected one input (views) and one output (maps)")
+    if flips not in FLIP_SETS:
+        raise ValueError(f"flips {flips!r}, not one of {sorted(FLIP_SETS)}")
     props = metadata(model)
     if FLIPS_KEY in props:
         raise ValueError(f"already averages {props[FLIPS_KEY]} flips")
     channels = channel_order(props, "sin2phi")
+    passes = FLIP_SETS[flips]
     views, maps = graph.input[0].name, graph.output[0].name
     inner_in, inner_out = "flip/stacked", "flip/net_maps"
     nodes, initializers = embed(graph, "net/", inner_in, inner_out)
@@ -101,31 +110,42 @@ def wrap(model):
     def flip(x, axis, out):
         return helper.make_node("Slice", [x, start, end, ax[axis], step], [out], name=out)
 
-    head = [
-        flip(views, 3, "flip/x"),                   # left-right (columns)
-        flip(views, 2, "flip/y"),                   # up-down (rows)
-        flip("flip/x", 2, "flip/xy"),               # both: a half turn
-        helper.make_node("Concat", [views, "flip/x", "flip/y", "flip/xy"], [inner_in], axis=0, name=inner_in),
-    ]
-    # [4B, 4, L, L] -> [4, B, 4, L, L]: part k holds every view under flip k.
+    def flipped(x, rows_axis, flip_y, flip_x, out, head):
+        """Appends to `head` the nodes that flip `x` (rows on `rows_axis`,
+        columns on the next) as a pass says; returns the result's name."""
+        if flip_x:
+            head.append(flip(x, rows_axis + 1, out + "_x" if flip_y else out))
+            x = out + "_x" if flip_y else out
+        if flip_y:
+            head.append(flip(x, rows_axis, out))
+            x = out
+        return x
+
+    # Pass k's views: up-down is the rows (axis 2), left-right the columns (3).
+    head, inputs = [], []
+    for k, (flip_y, flip_x) in enumerate(passes):
+        inputs.append(flipped(views, 2, flip_y, flip_x, f"flip/in{k}", head))
+    head.append(helper.make_node("Concat", inputs, [inner_in], axis=0, name=inner_in))
+    # [nB, 4, L, L] -> [n, B, 4, L, L]: part k holds every view under pass k.
     size = [d.dim_value for d in graph.input[0].type.tensor_type.shape.dim[2:]]
     if len(size) != 2 or min(size) <= 0:
         raise ValueError("expected views of a fixed size [B, 1, L, L]")
-    shape = const("flip/parts_shape", [4, -1, 4] + size)
-    sign = np.ones((4, 1, 4, 1, 1), np.float32)
-    sign[1:3, 0, channels.index("sin2phi")] = -1.0
+    n = len(passes)
+    shape = const("flip/parts_shape", [n, -1, 4] + size)
+    sign = np.ones((n, 1, 4, 1, 1), np.float32)
+    for k, (flip_y, flip_x) in enumerate(passes):
+        if flip_y != flip_x:  # a single flip mirrors the angle
+            sign[k, 0, channels.index("sin2phi")] = -1.0
     const("flip/sign", sign, np.float32)
-    split = const("flip/split", [1, 1, 1, 1])
+    split = const("flip/split", [1] * n)
+    parts = [f"flip/p{k}" for k in range(n)]
     tail = [
         helper.make_node("Reshape", [inner_out, shape], ["flip/parts"], name="flip/parts"),
-        helper.make_node("Split", ["flip/parts", split], ["flip/p0", "flip/p1", "flip/p2", "flip/p3"], axis=0,
-                         name="flip/split"),
-        flip("flip/p1", 4, "flip/p1_back"),
-        flip("flip/p2", 3, "flip/p2_back"),
-        flip("flip/p3", 4, "flip/p3_x"),
-        flip("flip/p3_x", 3, "flip/p3_back"),
-        helper.make_node("Concat", ["flip/p0", "flip/p1_back", "flip/p2_back", "flip/p3_back"], ["flip/back"],
-                         axis=0, name="flip/back"),
+        helper.make_node("Split", ["flip/parts", split], parts, axis=0, name="flip/split"),
+    ]
+    back = [flipped(part, 3, flip_y, flip_x, part + "_back", tail) for part, (flip_y, flip_x) in zip(parts, passes)]
+    tail += [
+        helper.make_node("Concat", back, ["flip/back"], axis=0, name="flip/back"),
         helper.make_node("Mul", ["flip/back", "flip/sign"], ["flip/signed"], name="flip/signed"),
         helper.make_node("ReduceMean", ["flip/signed"], [maps], axes=[0], keepdims=0, name="flip/mean"),
     ]
@@ -133,8 +153,8 @@ def wrap(model):
                                   list(graph.output), initializers)
     out = helper.make_model(new_graph, opset_imports=list(model.opset_import), producer_name="mvgrasp_train",
                             ir_version=model.ir_version)
-    props[FLIPS_KEY] = "4"
-    props[VERSION_KEY] = props.get(VERSION_KEY, "unversioned") + "+flips"
+    props[FLIPS_KEY] = str(n)
+    props[VERSION_KEY] = props.get(VERSION_KEY, "unversioned") + ("+flips" if flips == "four" else "+mirror")
     write_metadata(out, props)
     onnx.checker.check_model(out)
     if out.graph.input[0].type.tensor_type.elem_type != TensorProto.FLOAT:
@@ -150,13 +170,13 @@ def session(model_bytes):
     return onnxruntime.InferenceSession(model_bytes, options, providers=["CPUExecutionProvider"])
 
 
-def check(base, wrapped, views):
-    """Largest |wrapped(views) - the four passes of base averaged| (numpy,
-    `evaluate_onnx.flip_average`)."""
+def check(base, wrapped, views, flips="four"):
+    """Largest |wrapped(views) - the passes of base averaged| (numpy,
+    `evaluate_onnx.flip_average` with the same `flips`)."""
     from .evaluate_onnx import flip_average
 
     plain, flipped = session(base.SerializeToString()), session(wrapped.SerializeToString())
-    expected = flip_average(lambda v: plain.run(["maps"], {"views": v})[0], views)
+    expected = flip_average(lambda v: plain.run(["maps"], {"views": v})[0], views, flips)
     got = flipped.run(["maps"], {"views": views})[0]
     return float(np.abs(got - expected).max())
 
@@ -182,11 +202,14 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("model")
     p.add_argument("out")
+    p.add_argument("--flips", choices=("four", "mirror"), default="four",
+                   help="four: the view and its three flips; mirror: the view and its left-right mirror "
+                        "(the flips that keep the table below a front or side view)")
     args = p.parse_args(argv)
     base = onnx.load(args.model)
-    wrapped = wrap(base)
-    worst = check(base, wrapped, probe_views(base))
-    save_checked(wrapped, args.out, worst, "the wrapped model differs from four passes")
+    wrapped = wrap(base, args.flips)
+    worst = check(base, wrapped, probe_views(base), args.flips)
+    save_checked(wrapped, args.out, worst, f"the wrapped model differs from its {args.flips} passes averaged")
 
 
 if __name__ == "__main__":

@@ -146,6 +146,15 @@ def symmetry(views, pixels, k):
     return np.ascontiguousarray(views), np.ascontiguousarray(pixels)
 
 
+def symmetry_each(views, pixels, ks):
+    """`symmetry` with its own index `ks[i]` per row (rows grouped by index)."""
+    views, pixels = views.copy(), pixels.copy()
+    for k in np.unique(ks):
+        rows = np.flatnonzero(ks == k)
+        views[rows], pixels[rows] = symmetry(views[rows], pixels[rows], int(k))
+    return views, pixels
+
+
 def gaussian_kernel(sigma_px):
     """The planner's quality smoothing (`DecodeConfig::smoothing_sigma_px`)
     as a normalised 1-D kernel of radius ceil(3 sigma), as

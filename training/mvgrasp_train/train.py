@@ -31,7 +31,10 @@ ones (`sim eval --attempt-alternatives`) unless `--physics-own-only`.
 loss: with `--teacher` the model it starts from, the network then only
 moves where physics says its picks fail or hold.
 `--architecture skip` or `wide` may start from a `narrow` run (`start_from`).
-Augments each training view (augment.py), and after every epoch
+Augments each training view (augment.py), with all 8 symmetries of the
+square or, with `--symmetries gravity`, only those that keep the table
+below in front and side views (`augment.symmetry_mask`; the physics
+attempts alike), and after every epoch
 evaluates the paper's grasp accuracy on the held-out instances. On a GPU
 (`--device cuda`) the training views sit in device memory and whole batches
 are augmented there (augment_torch.py); on the CPU each view is augmented
@@ -176,10 +179,11 @@ class Teacher:
 
 def physics_loss(model, attempts, picked, kernel, symmetry, device="cpu"):
     """Mean squared error between the network's quality at the pixels of
-    attempts `picked` (after `physics.symmetry` number `symmetry`),
-    smoothed by the 1-D `kernel` in both directions with clamped edges as
-    the planner does, and their outcomes (1 held, 0 failed)."""
-    views, pixels = physics.symmetry(attempts.views[picked], attempts.pixels[picked], symmetry)
+    attempts `picked` (after `physics.symmetry` number `symmetry`, one for
+    all or one per attempt), smoothed by the 1-D `kernel` in both directions
+    with clamped edges as the planner does, and their outcomes (1 held, 0 failed)."""
+    ks = np.broadcast_to(np.asarray(symmetry, dtype=np.int64), (len(picked),))
+    views, pixels = physics.symmetry_each(attempts.views[picked], attempts.pixels[picked], ks)
     x = torch.from_numpy(views).unsqueeze(1).to(device)
     quality = torch.sigmoid(model.raw(x)[:, :1])
     r = (len(kernel) - 1) // 2
@@ -250,6 +254,9 @@ def main(argv=None):
                    help="the planner's quality smoothing (DecodeConfig::smoothing_sigma_px)")
     p.add_argument("--label-weight", type=float, default=1.0,
                    help="weight of the label loss (0: none; with --teacher and --physics, see above)")
+    p.add_argument("--symmetries", choices=augment.SYMMETRY_MODES, default="all",
+                   help="gravity: front and side views only mirrored left-right, so the table stays below "
+                        "(top views keep all 8); all: the 8 symmetries of the square for every view")
     p.add_argument("--device", default="cpu")
     p.add_argument("--augment", choices=("auto", "numpy", "torch"), default="auto",
                    help="numpy: per view on the CPU; torch: whole batches on --device, data held there (auto: torch off the CPU)")
@@ -308,6 +315,11 @@ def main(argv=None):
             raise SystemExit(f"--physics {args.physics}: {problems or 'no attempts that held or failed'}")
         print(f"physics: {physics.summary(attempts)}", file=sys.stderr)
         kernel = physics.gaussian_kernel(args.physics_sigma_px)
+        try:
+            attempt_masks = np.array([augment.symmetry_mask(r.get("view"), args.symmetries)
+                                      for r in attempts.records], dtype=np.int64)
+        except ValueError as e:
+            raise SystemExit(f"--physics {args.physics}: {e}")
     if args.label_weight == 0 and teacher is None and attempts is None:
         raise SystemExit("--label-weight 0 needs --teacher or --physics: nothing to learn")
     optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
@@ -318,9 +330,14 @@ def main(argv=None):
     with open(os.path.join(args.out, "config.json"), "w") as f:
         json.dump(config, f, indent=1)
     on_device = args.augment == "torch" or (args.augment == "auto" and device.type != "cpu")
+    try:
+        masks = np.array([augment.symmetry_mask(m.get("view"), args.symmetries) for m in ds.meta], dtype=np.int64)
+    except ValueError as e:
+        raise SystemExit(f"{args.data}: {e}")
     if on_device:
         train_views = torch.from_numpy(ds.views[train_idx]).to(device)
         train_maps = torch.from_numpy(ds.maps[train_idx]).to(device)
+        train_masks = torch.from_numpy(masks[train_idx]).to(device)
         generator = torch.Generator(device=device)
         generator.manual_seed(args.seed)
     log = open(os.path.join(args.out, "log.jsonl"), "w")
@@ -341,9 +358,10 @@ def main(argv=None):
             batch = order[step * args.batch:(step + 1) * args.batch]
             if on_device:
                 picked = torch.from_numpy(batch).to(device)
-                x, y = augment_torch.augment(train_views[picked], train_maps[picked], generator)
+                x, y = augment_torch.augment(train_views[picked], train_maps[picked], generator,
+                                             mask=train_masks[picked])
             else:
-                pairs = [augment.augment(ds.views[i], ds.maps[i], rng) for i in batch]
+                pairs = [augment.augment(ds.views[i], ds.maps[i], rng, mask=masks[i]) for i in batch]
                 x = torch.from_numpy(np.stack([a for a, _ in pairs])).to(device)
                 y = torch.from_numpy(np.stack([b for _, b in pairs])).to(device)
             if args.schedule == "cosine":
@@ -363,8 +381,8 @@ def main(argv=None):
                 loss = loss + args.rank_weight * rank_loss(scores, y[:, 0])
             if attempts is not None:
                 picked = rng.integers(0, len(attempts), size=args.batch)
-                loss = loss + args.physics_weight * physics_loss(model, attempts, picked, kernel,
-                                                                 int(rng.integers(0, 8)), device)
+                ks = int(rng.integers(0, 8)) & attempt_masks[picked]
+                loss = loss + args.physics_weight * physics_loss(model, attempts, picked, kernel, ks, device)
             loss.backward()
             optimiser.step()
             losses.append(loss.detach())

@@ -71,6 +71,69 @@ class Augmentation(unittest.TestCase):
         self.assertFalse(np.array_equal(v2, view))
 
 
+def standing_view(l=24):
+    """A view of something standing on the table: a full bottom row, and a
+    mark left of the centre above it, quality painted on both."""
+    view = np.zeros((1, l, l), np.float32)
+    view[0, l - 1, :] = 0.5
+    view[0, l // 2, 3] = 0.7
+    maps = np.zeros((4, l, l), np.float32)
+    maps[:, view[0] > 0] = np.array([1.0, 1.0, 0.0, 0.3], np.float32)[:, None]
+    return view, maps
+
+
+class GravitySymmetries(unittest.TestCase):
+    def test_front_and_side_views_keep_the_table_below_top_views_turn(self):
+        view, maps = standing_view()
+        for name, mode, keeps_table in (("front", "gravity", True), ("side", "gravity", True),
+                                        ("top", "gravity", False), ("front", "all", False)):
+            rng = np.random.default_rng(3)
+            bottoms, marks = set(), set()
+            for _ in range(64):
+                _, m = augment.augment(view, maps, rng, scale=0, mask=augment.symmetry_mask(name, mode))
+                rows, cols = np.nonzero(m[0])
+                bottoms.add(bool(np.all(m[0, -1] > 0)))
+                marks.add(tuple(sorted(set(zip(rows.tolist(), cols.tolist())) - {(23, c) for c in range(24)})))
+            if keeps_table:
+                self.assertEqual(bottoms, {True}, (name, mode))
+                # Both the view and its left-right mirror are drawn.
+                self.assertEqual(marks, {((12, 3),), ((12, 20),)}, (name, mode))
+            else:
+                self.assertEqual(bottoms, {True, False}, (name, mode))
+
+    def test_the_mask_leaves_the_random_draws_alone(self):
+        view, maps = standing_view()
+        after = []
+        for mask in (augment.ALL_SYMMETRIES, augment.KEEP_DOWN):
+            rng = np.random.default_rng(5)
+            for _ in range(10):
+                augment.augment(view, maps, rng, mask=mask)
+            after.append(rng.random())
+        self.assertEqual(after[0], after[1])
+
+    def test_masks_by_view_and_mode(self):
+        self.assertEqual(augment.symmetry_mask("top", "gravity"), 7)
+        self.assertEqual(augment.symmetry_mask("front", "gravity"), 1)
+        self.assertEqual(augment.symmetry_mask("side", "gravity"), 1)
+        self.assertEqual(augment.symmetry_mask("side", "all"), 7)
+        self.assertEqual(augment.symmetry_mask(None, "all"), 7)
+        with self.assertRaisesRegex(ValueError, "direction of gravity is unknown"):
+            augment.symmetry_mask(None, "gravity")
+        with self.assertRaisesRegex(ValueError, "not one of"):
+            augment.symmetry_mask("top", "upright")
+
+    def test_attempts_turn_each_by_its_own_symmetry(self):
+        rng = np.random.default_rng(4)
+        views = rng.uniform(0, 1, (6, 9, 9)).astype(np.float32)
+        pixels = rng.integers(0, 9, (6, 2))
+        ks = np.array([0, 5, 1, 5, 7, 1])
+        v, p = physics.symmetry_each(views, pixels, ks)
+        for n, k in enumerate(ks):
+            want_v, want_p = physics.symmetry(views[n:n + 1], pixels[n:n + 1], int(k))
+            np.testing.assert_array_equal(v[n], want_v[0])
+            np.testing.assert_array_equal(p[n], want_p[0])
+
+
 class Metric(unittest.TestCase):
     def test_iou_of_known_rectangles(self):
         a = metric.rectangle(10, 10, 0.0, 10, 4)
@@ -370,6 +433,19 @@ class Reader(unittest.TestCase):
 
         averaged = evaluate_onnx.flip_average(leaning, views)
         self.assertLess(np.abs(averaged[:, 0] - 0.5).max(), 1e-6)
+
+        # The mirror alone: as equivariant, as even left-right, and it keeps
+        # what lies below (the table in a front view) where four flips lose it.
+        self.assertLess(np.abs(evaluate_onnx.flip_average(equivariant, views, "mirror") - one).max(), 1e-5)
+        self.assertLess(np.abs(evaluate_onnx.flip_average(leaning, views, "mirror")[:, 0] - 0.5).max(), 1e-6)
+
+        def low(views):  # prefers the bottom of every view
+            maps = equivariant(views)
+            maps[:, 0] = np.linspace(0.0, 1.0, views.shape[2])[:, None]
+            return maps
+
+        np.testing.assert_allclose(evaluate_onnx.flip_average(low, views, "mirror")[:, 0], low(views)[:, 0])
+        self.assertLess(np.abs(evaluate_onnx.flip_average(low, views)[:, 0] - 0.5).max(), 1e-6)
 
 
 class Pack(unittest.TestCase):

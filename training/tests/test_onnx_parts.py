@@ -72,6 +72,24 @@ class FlipWrapTest(unittest.TestCase):
         with self.assertRaises(ValueError):
             self.fw.wrap(lying)
 
+    def test_the_mirror_alone_equals_two_passes_and_keeps_up_and_down(self):
+        mirrored = self.fw.wrap(self.base, "mirror")
+        self.assertLessEqual(self.fw.check(self.base, mirrored, self.views, "mirror"), self.fw.TOLERANCE)
+        self.assertGreater(self.fw.check(self.base, mirrored, self.views, "four"), 1e-3)
+        maps = self.run_model(mirrored, self.views)
+        got = self.run_model(mirrored, np.ascontiguousarray(np.flip(self.views, 3)))
+        want = np.flip(maps, 3).copy()
+        want[:, 2] *= -1.0
+        np.testing.assert_allclose(got, want, atol=1e-5)
+        upside_down = self.run_model(mirrored, np.ascontiguousarray(np.flip(self.views, 2)))
+        self.assertGreater(float(np.abs(upside_down - np.flip(maps, 2)).max()), 1e-3)
+        props = {p.key: p.value for p in mirrored.metadata_props}
+        base = {p.key: p.value for p in self.base.metadata_props}
+        self.assertEqual(props[self.fw.FLIPS_KEY], "2")
+        self.assertEqual(props[self.fw.VERSION_KEY], base[self.fw.VERSION_KEY] + "+mirror")
+        with self.assertRaisesRegex(ValueError, "not one of"):
+            self.fw.wrap(self.base, "eight")
+
     def test_metadata_and_no_double_wrap(self):
         props = {p.key: p.value for p in self.wrapped.metadata_props}
         base = {p.key: p.value for p in self.base.metadata_props}

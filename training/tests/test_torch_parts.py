@@ -69,6 +69,22 @@ class BatchAugmentation(unittest.TestCase):
         self.assertTrue(bool((m[:, 0] > 0).any()))
 
 
+    def test_a_mask_of_one_keeps_each_view_s_bottom_row_below(self):
+        import torch
+        from mvgrasp_train import augment, augment_torch
+        views = np.zeros((64, 1, 24, 24), np.float32)
+        views[:, 0, -1, :] = 0.5  # a table edge along the bottom
+        maps = np.zeros((64, 4, 24, 24), np.float32)
+        maps[:, 0] = views[:, 0] > 0
+        mask = np.where(np.arange(64) % 2 == 0, augment.KEEP_DOWN, augment.ALL_SYMMETRIES)
+        generator = torch.Generator().manual_seed(3)
+        _, m = augment_torch.augment(torch.from_numpy(views), torch.from_numpy(maps), generator, scale=0,
+                                     mask=torch.from_numpy(mask))
+        bottom = (m[:, 0, -1, :] > 0).all(dim=1).numpy()
+        self.assertTrue(bottom[0::2].all(), "front and side views keep the table below")
+        self.assertFalse(bottom[1::2].all(), "top views turn")
+
+
 @unittest.skipIf(MISSING, REASON)
 class Network(unittest.TestCase):
     def setUp(self):
