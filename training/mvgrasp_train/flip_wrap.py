@@ -14,7 +14,7 @@ The metadata gains `mvgrasp.test_time_flips` = 4 and the model version a
 mirror only (2 passes, `test_time_flips` = 2, suffix `+mirror`): the
 flips that keep the table below a front or side view, for networks
 trained with `train --symmetries gravity`. Only onnx is needed (no PyTorch); the output is checked
-against the four passes run separately (`check`).
+against the same passes run separately (`check`).
 """
 
 import argparse
@@ -24,6 +24,8 @@ import sys
 import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
+
+from .evaluate_onnx import FLIP_SETS, flip_average
 
 FLIPS_KEY = "mvgrasp.test_time_flips"
 VERSION_KEY = "mvgrasp.model_version"
@@ -84,8 +86,6 @@ def wrap(model, flips="four"):
     "four") or its left-right mirror ("mirror"), maps flipped back and
     averaged. `model` must map `[B, 1, L, L]` to `[B, 4, L, L]` (one input,
     one output) and not be wrapped already."""
-    from .evaluate_onnx import FLIP_SETS
-
     graph = model.graph
     if len(graph.input) != 1 or len(graph.output) != 1:
         raise ValueError("expected one input (views) and one output (maps)")
@@ -105,9 +105,11 @@ def wrap(model, flips="four"):
         return name
 
     start, end, step = const("flip/start", [-1]), const("flip/end", [_END]), const("flip/step", [-1])
-    ax = {a: const(f"flip/axis{a}", [a]) for a in (2, 3, 4)}
+    ax = {}  # the axes some pass flips, each made once (an unused one would be dead weight in the file)
 
     def flip(x, axis, out):
+        if axis not in ax:
+            ax[axis] = const(f"flip/axis{axis}", [axis])
         return helper.make_node("Slice", [x, start, end, ax[axis], step], [out], name=out)
 
     def flipped(x, rows_axis, flip_y, flip_x, out, head):
@@ -173,8 +175,6 @@ def session(model_bytes):
 def check(base, wrapped, views, flips="four"):
     """Largest |wrapped(views) - the passes of base averaged| (numpy,
     `evaluate_onnx.flip_average` with the same `flips`)."""
-    from .evaluate_onnx import flip_average
-
     plain, flipped = session(base.SerializeToString()), session(wrapped.SerializeToString())
     expected = flip_average(lambda v: plain.run(["maps"], {"views": v})[0], views, flips)
     got = flipped.run(["maps"], {"views": views})[0]
@@ -202,7 +202,7 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("model")
     p.add_argument("out")
-    p.add_argument("--flips", choices=("four", "mirror"), default="four",
+    p.add_argument("--flips", choices=sorted(FLIP_SETS), default="four",
                    help="four: the view and its three flips; mirror: the view and its left-right mirror "
                         "(the flips that keep the table below a front or side view)")
     args = p.parse_args(argv)
