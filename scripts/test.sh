@@ -44,6 +44,21 @@ if ! PYTHONPATH="$pydeps" python3 -c "import grpc, grpc_tools" >/dev/null 2>&1; 
 fi
 cargo build --quiet -p mvgrasp-server --bin mvgrasp-server
 PYTHONPATH="$pydeps" python3 client/python/test_client.py target/debug/mvgrasp-server "$MVGRASP_ONNXRUNTIME"
+echo "== physics referee (MuJoCo, robosuite's UR5e + 2F-140, objects from PyPI wheels): self-checks, then the quick suite against a server"
+export MVGRASP_ROBOT_BRIDGE=target/debug/robot-bridge
+scripts/referee.sh --self-check
+port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+target/debug/mvgrasp-server --config deploy/server.toml --listen "127.0.0.1:$port" --no-metrics \
+    --onnxruntime "$MVGRASP_ONNXRUNTIME" &
+referee_server=$!
+timeout 120 bash -c "until (echo > /dev/tcp/127.0.0.1/$port) 2>/dev/null; do sleep 0.5; done"
+rm -rf target/referee-ci
+referee_status=0
+scripts/referee.sh --server "127.0.0.1:$port" --suite quick --camera topdown,angled --out target/referee-ci \
+    || referee_status=$?
+kill "$referee_server"
+wait "$referee_server" || true
+[[ $referee_status -eq 0 ]] || exit "$referee_status"
 echo "== sim datagen, read back by the Python dataset reader (numpy only)"
 if ! PYTHONPATH="$pydeps" python3 -c "import numpy" >/dev/null 2>&1; then
     python3 -m pip install --quiet --disable-pip-version-check --target "$pydeps" numpy

@@ -23,6 +23,7 @@ pub mod emulate;
 mod error;
 pub mod execute;
 pub mod gripper;
+pub mod jsonl;
 mod net;
 pub mod pick;
 pub mod planner;

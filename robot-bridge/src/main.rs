@@ -101,6 +101,15 @@ enum Command {
         #[arg(long, default_value_t = 63352)]
         gripper_port: u16,
     },
+    /// Kinematics and pick planning as a line protocol on stdin/stdout (one
+    /// JSON request per line; see `robot_bridge::jsonl`), with the
+    /// calibration, drop pose and basket of `--config`. Used by the physics
+    /// referee to run the bridge's own picks on a simulated arm.
+    PlanJsonl {
+        /// Settings file (see robot-bridge/bridge.toml).
+        #[arg(long, env = "ROBOT_BRIDGE_CONFIG")]
+        config: Option<std::path::PathBuf>,
+    },
     /// Flange pose for joint angles (rad).
     Fk {
         /// Six joint angles (rad).
@@ -219,6 +228,16 @@ fn main() -> anyhow::Result<()> {
             loop {
                 std::thread::sleep(std::time::Duration::from_secs(3600));
             }
+        }
+        Command::PlanJsonl { config } => {
+            let settings = match &config {
+                Some(path) => BridgeConfig::load(path)?,
+                None => BridgeConfig::default(),
+            };
+            settings.validate()?;
+            let config = settings.pick_config()?;
+            let stdin = std::io::stdin();
+            robot_bridge::jsonl::serve(&arm, &config, stdin.lock(), std::io::stdout().lock())?;
         }
         Command::Fk { joints } => {
             let q: [f64; 6] = joints

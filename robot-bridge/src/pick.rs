@@ -268,28 +268,28 @@ fn plan_one(
         let Ok(q_pre) = arm.inverse_nearest(&flange_for(&pre), current) else {
             continue;
         };
-        let q_grasp = match linear(
+        let q_grasp = match last(linear(
             arm,
             config,
             world,
             &flange_for(&pre),
             &flange_for(&world_from_tcp),
             &q_pre,
-        ) {
+        )) {
             Ok(q) => q,
             Err(e) => {
                 reason = format!("approach: {e}");
                 continue;
             }
         };
-        let q_lift = match linear(
+        let q_lift = match last(linear(
             arm,
             config,
             world,
             &flange_for(&world_from_tcp),
             &flange_for(&lift),
             &q_grasp,
-        ) {
+        )) {
             Ok(q) => q,
             Err(e) => {
                 reason = format!("lift: {e}");
@@ -372,9 +372,42 @@ fn plan_one(
     })
 }
 
+/// The joints that run the TCP in a straight line from `base_from_tcp_start`
+/// to `base_from_tcp_end` (robot base frame), one sample per centimetre and
+/// the end, starting at joints `start`: what a `movel` of a plan passes
+/// through. Obstacles are not checked here (`plan_pick` did that); a sample
+/// out of reach or a joint jump over `max_joint_step` is an error.
+pub fn linear_path(
+    arm: &Ur5e,
+    config: &PickConfig,
+    base_from_tcp_start: &Isometry3<f64>,
+    base_from_tcp_end: &Isometry3<f64>,
+    start: &Joints,
+) -> Result<Vec<Joints>> {
+    let tcp_from_flange = config.flange_from_tcp.inverse();
+    let free = CollisionWorld::new(Isometry3::identity(), &[], config.arm_model.clone());
+    linear(
+        arm,
+        config,
+        &free,
+        &(base_from_tcp_start * tcp_from_flange),
+        &(base_from_tcp_end * tcp_from_flange),
+        start,
+    )
+}
+
+fn last(path: Result<Vec<Joints>>) -> Result<Joints> {
+    path.and_then(|p| {
+        p.last()
+            .copied()
+            .ok_or_else(|| Error::Unreachable("an empty linear move".to_owned()))
+    })
+}
+
 /// Solves a straight flange line from `from` to `to` at 1 cm steps starting
-/// at joints `start`; fails if a sample is unreachable, collides, or a joint
-/// jumps by more than `max_joint_step` (a flip through a singularity).
+/// at joints `start` and returns the samples after the start; fails if a
+/// sample is unreachable, collides, or a joint jumps by more than
+/// `max_joint_step` (a flip through a singularity).
 fn linear(
     arm: &Ur5e,
     config: &PickConfig,
@@ -382,10 +415,11 @@ fn linear(
     from: &Isometry3<f64>,
     to: &Isometry3<f64>,
     start: &Joints,
-) -> Result<Joints> {
+) -> Result<Vec<Joints>> {
     let distance = (to.translation.vector - from.translation.vector).norm();
     let samples = ((distance / 0.01).ceil() as usize).max(1);
     let mut q = *start;
+    let mut path = Vec::with_capacity(samples);
     for k in 0..=samples {
         let t = k as f64 / samples as f64;
         let next = if k == 0 {
@@ -401,9 +435,12 @@ fn linear(
         if let Some(hit) = world.collision(arm, &next) {
             return Err(Error::Unreachable(format!("the linear move hits `{hit}`")));
         }
+        if k > 0 {
+            path.push(next);
+        }
         q = next;
     }
-    Ok(q)
+    Ok(path)
 }
 
 /// The arm's part of a pick as a URScript program (gripper steps become

@@ -1,0 +1,140 @@
+"""`python -m mvgrasp_referee`: clear-the-table runs against a running planner
+(scripts/referee.sh sets up the environment and calls this)."""
+
+import argparse
+import multiprocessing
+import os
+import shlex
+import sys
+import time
+
+SUITES = {
+    # scenario -> episodes per camera and pool
+    "oracle": {"isolated": {"test-a": 40, "test-b": 45}},
+    "quick": {"isolated": {"test-a": 3, "test-b": 3}, "packed": {"test-b": 1}, "pile": {"test-a": 1}},
+    "standard": {"isolated": {"test-a": 60, "test-b": 60}, "packed": {"test-a": 10, "test-b": 10},
+                 "pile": {"test-a": 10, "test-b": 10}},
+    "full": {"isolated": {"test-a": 200, "test-b": 90}, "packed": {"test-a": 25, "test-b": 25},
+             "pile": {"test-a": 25, "test-b": 25}},
+}
+
+
+def parse(argv):
+    p = argparse.ArgumentParser(prog="referee", description="Clear-the-table in MuJoCo against a running "
+                                "mvgrasp planner, judged in physics.")
+    p.add_argument("--server", default="127.0.0.1:50051", help="the planner's gRPC address (HOST:PORT)")
+    p.add_argument("--suite", choices=SUITES, default="quick")
+    p.add_argument("--camera", default="topdown", help="topdown, angled, random or all (topdown,angled,random)")
+    p.add_argument("--pools", default="test-a,test-b",
+                   help="pools to run (train only for tuning; test-a, test-b only to report a chosen candidate)")
+    p.add_argument("--scenarios", default="isolated,packed,pile")
+    p.add_argument("--policy", default="default", help="view policy asked of the planner "
+                   "(default: the server's; entropy, all, top-down, random)")
+    p.add_argument("--min-quality", type=float, default=None, help="tau asked of the planner (default: the server's)")
+    p.add_argument("--max-grasps", type=int, default=10)
+    p.add_argument("--oracle", action="store_true",
+                   help="ground-truth grasps instead of the planner (the executor's self-check)")
+    p.add_argument("--seed", type=int, default=2026)
+    p.add_argument("--resolution", default="640x480")
+    p.add_argument("--noise", action="store_true", help="Kinect-like depth noise")
+    p.add_argument("--workers", type=int, default=max(1, min(2, os.cpu_count() or 1)))
+    p.add_argument("--snapshots", type=int, default=12, help="failure snapshots to write (PNG)")
+    p.add_argument("--bridge", default=None, help="robot-bridge binary (default target/release/robot-bridge)")
+    p.add_argument("--out", required=True)
+    return p.parse_args(argv)
+
+
+def jobs(args):
+    from . import camera, pools, scenes  # noqa: PLC0415
+
+    cameras = list(camera.CAMERAS) if args.camera == "all" else args.camera.split(",")
+    for c in cameras:
+        if c not in camera.CAMERAS:
+            raise SystemExit(f"referee: unknown camera {c!r} (topdown, angled, random or all)")
+    pool_names = args.pools.split(",")
+    for name in pool_names:
+        pools.pool(name)
+    out = []
+    for scenario in args.scenarios.split(","):
+        if scenario not in scenes.SCENARIOS:
+            raise SystemExit(f"referee: unknown scenario {scenario!r}")
+        for cam in cameras:
+            for pool in pool_names:
+                per_pool = SUITES[args.suite].get(scenario, {})
+                count = per_pool.get(pool, 0)
+                out += [(scenario, pool, cam, e) for e in range(count)]
+    return out
+
+
+_worker = {}
+
+
+def _init(args):
+    from . import bridge, cell, gripper, planner  # noqa: PLC0415
+
+    probe = cell.build([], [])
+    _worker["bridge"] = bridge.Bridge(args.bridge, gripper.tcp_in_flange(probe))
+    _worker["planner"] = planner.OraclePlanner() if args.oracle else planner.Planner(
+        args.server, args.policy, args.min_quality, args.max_grasps)
+    _worker["args"] = args
+    _worker["renderers"] = {}
+
+
+def _run(job):
+    from . import protocol, report  # noqa: PLC0415
+
+    scenario, pool, cam, episode = job
+    args = _worker["args"]
+    take = None
+    if args.snapshots > 0:
+        def take(cell, pose, depth, entry, record):
+            marker = os.path.join(args.out, "failures")
+            if os.path.isdir(marker) and len(os.listdir(marker)) >= args.snapshots:
+                return None
+            return report.snapshot(args.out, cell, pose, depth, entry, record, _worker["renderers"])
+    start = time.perf_counter()
+    record = protocol.run_episode(_worker["planner"], _worker["bridge"], scenario, pool, cam, args.seed, episode,
+                                  args.resolution, args.noise, take)
+    record["wall_s"] = round(time.perf_counter() - start, 2)
+    return record
+
+
+def main(argv=None):
+    args = parse(sys.argv[1:] if argv is None else argv)
+    from . import assets, pools, report  # noqa: PLC0415
+
+    pools.check_split()
+    if args.bridge is None:
+        args.bridge = os.path.join(assets.ROOT, "target", "release", "robot-bridge")
+    os.makedirs(args.out, exist_ok=True)
+    work = jobs(args)
+    assets.robosuite_assets()
+    assets.pybullet_data()
+    _init(args)
+    info = _worker["planner"].model_info()
+    print(f"referee: {len(work)} episodes, suite {args.suite}, planner {info['model_version']} "
+          f"on {info['backend']}, {args.workers} worker(s)", file=sys.stderr)
+    start = time.perf_counter()
+    episodes = []
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(args.workers, initializer=_init, initargs=(args,)) as pool:
+        for k, record in enumerate(pool.imap(_run, work), 1):
+            episodes.append(record)
+            done = sum(a["outcome"] == "success" for e in episodes for a in e["attempts"])
+            tried = sum(a["outcome"] not in ("no-grasp", "unreachable") for e in episodes for a in e["attempts"])
+            bar = "#" * int(30 * k / len(work))
+            print(f"\r[{bar:<30}] {k}/{len(work)} episodes, {done}/{tried} attempts held, "
+                  f"{time.perf_counter() - start:.0f} s", end="", file=sys.stderr, flush=True)
+    print(file=sys.stderr)
+    meta = {**info, "suite": args.suite, "policy": args.policy, "min_quality": args.min_quality,
+            "max_grasps": args.max_grasps, "seed": args.seed, "resolution": args.resolution, "noise": args.noise,
+            "oracle": args.oracle, "workers": args.workers, "wall_s": time.perf_counter() - start,
+            "command": "scripts/referee.sh " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))}
+    table = report.write(args.out, meta, episodes)
+    print(report.markdown(meta, table))
+    _worker["bridge"].close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,96 @@
+"""The robot-bridge's own kinematics and pick planning, over its line
+protocol (`robot-bridge plan-jsonl`; robot-bridge/src/jsonl.rs).
+
+The bridge is configured as this cell is calibrated: its base where the
+simulated arm stands, the TCP at the simulated 2F-140's fingertips, the
+bin as its basket and the drop pose above it.
+"""
+
+import json
+import math
+import os
+import subprocess
+import tempfile
+
+import numpy as np
+
+from . import cell as cellmod
+
+
+def quat_xyzw(rotation):
+    """A rotation matrix as a quaternion (x, y, z, w)."""
+    import mujoco  # noqa: PLC0415
+
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.asarray(rotation, float).ravel())
+    return [q[1], q[2], q[3], q[0]]
+
+
+def config_toml(tcp_in_flange):
+    """The bridge's settings for this cell (robot-bridge/bridge.toml's keys)."""
+    position, yaw = cellmod.WORLD_FROM_BASE
+    base_q = [0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)]
+    # Fingers close along the flange's y: the TCP's x (closing) is the flange's y.
+    tcp_q = [0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4)]
+    (bx, by, bz), (hx, hy, hz) = cellmod.bin_box()
+    fmt = ", ".join
+    return f"""[robot]
+world_from_base = {{ position = [{fmt(f"{v:.6f}" for v in position)}], orientation = [{fmt(f"{v:.9f}" for v in base_q)}] }}
+flange_from_tcp = {{ position = [{fmt(f"{v:.6f}" for v in tcp_in_flange)}], orientation = [{fmt(f"{v:.9f}" for v in tcp_q)}] }}
+
+[pick]
+world_from_drop = {{ position = [{bx:.4f}, {by:.4f}, {cellmod.DROP_HEIGHT_M:.4f}], orientation = [1.0, 0.0, 0.0, 0.0] }}
+basket = {{ centre = [{bx:.4f}, {by:.4f}, {bz:.4f}], half_extents_m = [{hx:.4f}, {hy:.4f}, {hz:.4f}] }}
+"""
+
+
+class Bridge:
+    """A running `robot-bridge plan-jsonl` process."""
+
+    def __init__(self, binary, tcp_in_flange):
+        if not os.path.exists(binary):
+            raise FileNotFoundError(f"{binary}: build it with `cargo build --release -p mvgrasp-robot-bridge`")
+        self._config = tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False)
+        self._config.write(config_toml(tcp_in_flange))
+        self._config.close()
+        self.process = subprocess.Popen([binary, "plan-jsonl", "--config", self._config.name],
+                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+
+    def ask(self, request):
+        self.process.stdin.write(json.dumps(request) + "\n")
+        self.process.stdin.flush()
+        line = self.process.stdout.readline()
+        if not line:
+            raise RuntimeError("robot-bridge plan-jsonl exited")
+        return json.loads(line)
+
+    def fk(self, q):
+        """base_from_flange (4x4) by the bridge's kinematics."""
+        import mujoco  # noqa: PLC0415
+
+        answer = self.ask({"fk": [float(v) for v in q]})
+        if not answer["ok"]:
+            raise RuntimeError(answer["error"])
+        x, y, z, w = answer["orientation"]
+        m = np.zeros(9)
+        mujoco.mju_quat2Mat(m, np.array([w, x, y, z]))
+        t = np.eye(4)
+        t[:3, :3] = m.reshape(3, 3)
+        t[:3, 3] = answer["position"]
+        return t
+
+    def plan(self, grasps, boxes, table, current):
+        """The bridge's pick for ranked `grasps` (dicts with position,
+        orientation xyzw, width_m, quality, object), or its refusals."""
+        answer = self.ask({"plan": {"grasps": grasps, "objects": boxes, "table": table,
+                                    "current": [float(v) for v in current]}})
+        if not answer["ok"]:
+            raise RuntimeError(answer["error"])
+        return answer
+
+    def close(self):
+        if self.process.poll() is None:
+            self.process.stdin.close()
+            self.process.wait(timeout=10)
+        self.process.stdout.close()
+        os.unlink(self._config.name)

@@ -1,0 +1,231 @@
+"""Runs one pick of the robot-bridge's plan on the simulated arm and judges it.
+
+Joint moves are interpolated in time (a smooth profile at `JOINT_SPEED`) and
+sent as targets to the arm's joint servos each step; straight moves run
+through the bridge's own 1 cm IK samples at `TOOL_SPEED`. The gripper opens
+to the step's width, closes until the fingers stall, the object is lifted
+(the bridge's 15 cm), shaken, carried over the bin and released. After the
+release, and after a failed attempt once the hand has opened, the arm is
+put back at its park pose (not simulated: `park`).
+
+Outcomes: `success` (the object is in the bin), `empty` (the fingers closed
+on nothing), `slip-lift`, `slip-shake`, `dropped-carry`, `collision`
+(the arm, not its pads, touched the table, the bin or another object on the
+way in and the object was not lifted). A move that is not finished within
+its time is `timeout`.
+"""
+
+import math
+
+import mujoco
+import numpy as np
+
+from . import cell as cellmod
+from . import gripper
+
+JOINT_SPEED = 0.6  # rad/s, peak (the robot-bridge's default joint_speed)
+TOOL_SPEED = 0.10  # m/s
+SETTLE_S = 0.25
+CLOSE_MAX_S = 1.5
+SHAKE = (0.25, 2, 2.0)  # wrist 3 amplitude (rad), cycles, Hz
+HELD_LIFT_M = 0.05  # an object held after a lift is this much above where it was
+
+
+class Run:
+    """One pick in progress: steps the physics and keeps what happened."""
+
+    def __init__(self, cell, target, budget_s=40.0):
+        self.cell, self.target = cell, target
+        self.m, self.d = cell.model, cell.data
+        self.steps_left = int(budget_s / cellmod.TIMESTEP_S)
+        self.collisions = []  # (phase, geom names) of the arm meeting something
+        self.phase = "start"
+        self.frames = []  # optional snapshots (phase, qpos)
+
+    def step(self, n=1):
+        for _ in range(n):
+            mujoco.mj_step(self.m, self.d)
+            self.steps_left -= 1
+            if self.phase in ("pre-grasp", "approach") and self.d.ncon:
+                self._watch_contacts()
+        return self.steps_left > 0
+
+    def _watch_contacts(self):
+        c = self.cell
+        finger = c.finger_geoms[0] | c.finger_geoms[1]
+        for i in range(self.d.ncon):
+            con = self.d.contact[i]
+            g1, g2 = con.geom1, con.geom2
+            robot = g1 in c.robot_geoms, g2 in c.robot_geoms
+            if robot[0] == robot[1]:
+                continue
+            arm_geom, other = (g1, g2) if robot[0] else (g2, g1)
+            target_geoms = self._target_geoms()
+            if other in target_geoms and arm_geom in finger:
+                continue  # the pads touching their own object
+            if other in target_geoms and self.phase == "approach":
+                continue  # the hand meeting its object as it goes in: judged by the outcome
+            self.collisions.append((self.phase, self.m.geom(arm_geom).name, self.m.geom(other).name or "table"))
+
+    def _target_geoms(self):
+        if self.target is None:
+            return set()
+        body = self.cell.object_body_ids[self.target]
+        return {g for g in range(self.m.ngeom) if self.m.geom_bodyid[g] == body}
+
+    def move_joints(self, q_to, speed=JOINT_SPEED):
+        q_from = self.cell.arm_q()
+        q_to = np.asarray(q_to, float)
+        # A smoothstep profile peaks at 1.5 x its mean speed.
+        duration = max(1.5 * float(np.max(np.abs(q_to - q_from))) / speed, 0.3)
+        n = int(duration / cellmod.TIMESTEP_S)
+        for k in range(1, n + 1):
+            s = k / n
+            s = s * s * (3 - 2 * s)
+            self.d.ctrl[self.cell.arm_act] = q_from + s * (q_to - q_from)
+            if not self.step():
+                return False
+        return self.step(int(SETTLE_S / cellmod.TIMESTEP_S / 2))
+
+    def move_path(self, path, length_m):
+        """Through joint samples that are `length_m` of tool travel in all."""
+        duration = max(length_m / TOOL_SPEED, 0.2)
+        per = max(int(duration / len(path) / cellmod.TIMESTEP_S), 1)
+        q_prev = self.cell.arm_q()
+        for q in path:
+            q = np.asarray(q, float)
+            for k in range(1, per + 1):
+                self.d.ctrl[self.cell.arm_act] = q_prev + k / per * (q - q_prev)
+                if not self.step():
+                    return False
+            q_prev = q
+        return self.step(int(SETTLE_S / cellmod.TIMESTEP_S / 2))
+
+    def open_to(self, width_m, table):
+        gripper.set_command(self.cell, gripper.command_for_width(table, min(width_m, 0.14)))
+        return self.step(int(0.6 / cellmod.TIMESTEP_S))
+
+    def close(self):
+        """Closes until the knuckle stops moving (or CLOSE_MAX_S)."""
+        gripper.set_command(self.cell, gripper.CLOSED_RAD)
+        still, last = 0, gripper.knuckle(self.cell)
+        for _ in range(int(CLOSE_MAX_S / cellmod.TIMESTEP_S)):
+            if not self.step():
+                return False
+            now = gripper.knuckle(self.cell)
+            still = still + 1 if abs(now - last) < 2e-5 else 0
+            last = now
+            if still >= int(0.1 / cellmod.TIMESTEP_S):
+                break
+        return self.step(int(0.15 / cellmod.TIMESTEP_S))
+
+    def shake(self):
+        amplitude, cycles, hz = SHAKE
+        q0 = self.cell.arm_q()
+        n = int(cycles / hz / cellmod.TIMESTEP_S)
+        for k in range(n):
+            t = k * cellmod.TIMESTEP_S
+            q = q0.copy()
+            q[5] += amplitude * math.sin(2 * math.pi * hz * t)
+            q[3] += 0.4 * amplitude * math.sin(2 * math.pi * hz * t)
+            self.d.ctrl[self.cell.arm_act] = q
+            if not self.step():
+                return False
+        self.d.ctrl[self.cell.arm_act] = q0
+        return self.step(int(0.2 / cellmod.TIMESTEP_S))
+
+
+def held_objects(cell):
+    """Objects touching both fingers."""
+    m, d = cell.model, cell.data
+    touching = [set(), set()]
+    for i in range(d.ncon):
+        c = d.contact[i]
+        for k, geoms in enumerate(cell.finger_geoms):
+            for a, b in ((c.geom1, c.geom2), (c.geom2, c.geom1)):
+                if a in geoms:
+                    body = m.geom_bodyid[b]
+                    if body in cell.object_body_ids:
+                        touching[k].add(cell.object_body_ids.index(body))
+    return touching[0] & touching[1]
+
+
+def execute(cell, plan_steps, target, gap_table, tcp_in_flange):
+    """Runs the bridge's steps for a grasp of object `target` (index or None)
+    and returns (outcome, details)."""
+    del tcp_in_flange
+    run = Run(cell, target)
+    start_z = {i: cell.object_pose(i)[0][2] for i in range(len(cell.bodies))}
+    closed = False
+    lifted = False
+    picked = None
+    for step in plan_steps:
+        name = step["name"]
+        kind = step["kind"]
+        if kind == "gripper" and not step["close"]:
+            if name == "release":
+                run.phase = "release"
+                held = held_objects(cell)
+                if picked is None or picked not in held:
+                    return "dropped-carry", _details(run, picked)
+                run.open_to(0.14, gap_table)
+                run.step(int(0.8 / cellmod.TIMESTEP_S))
+                break
+            run.phase = "open"
+            if not run.open_to(step["width_m"], gap_table):
+                return "timeout", _details(run, picked)
+        elif kind == "gripper" and step["close"]:
+            run.phase = "close"
+            if not run.close():
+                return "timeout", _details(run, picked)
+            closed = True
+            if gripper.pad_gap(cell) < 0.002:
+                return ("collision" if run.collisions else "empty"), _details(run, picked)
+        elif kind == "movej":
+            if not closed:
+                run.phase = "pre-grasp"
+            else:
+                run.phase = "carry"
+            if not run.move_joints(step["joints"]):
+                return "timeout", _details(run, picked)
+            if run.phase == "pre-grasp" and run.collisions:
+                return "unreachable-sim", _details(run, picked)
+        elif kind == "movel":
+            run.phase = "approach" if not closed else "lift"
+            if not run.move_path(step["path"], 0.15 if closed else 0.10):
+                return "timeout", _details(run, picked)
+            if run.phase == "lift":
+                lifted = True
+                held = held_objects(cell)
+                raised = [i for i in held if cell.object_pose(i)[0][2] > start_z[i] + HELD_LIFT_M]
+                if not raised:
+                    cause = "collision" if run.collisions else ("empty" if not held else "slip-lift")
+                    return cause, _details(run, picked)
+                picked = target if target in raised else raised[0]
+                run.phase = "shake"
+                run.shake()
+                if picked not in held_objects(cell):
+                    return "slip-shake", _details(run, picked)
+    if not lifted:
+        return "timeout", _details(run, picked)
+    park(cell)
+    if picked is not None and cellmod.in_bin(cell.object_pose(picked)[0]):
+        return "success", _details(run, picked)
+    return "dropped-carry", _details(run, picked)
+
+
+def park(cell):
+    """Opens the hand, puts the arm back at its park pose (not simulated) and
+    lets the scene settle for 0.3 s."""
+    gripper.set_command(cell, cellmod.GRIP_OPEN_RAD)
+    for _ in range(int(0.4 / cellmod.TIMESTEP_S)):
+        mujoco.mj_step(cell.model, cell.data)
+    cell.set_arm(np.array(cellmod.PARK))
+    mujoco.mj_forward(cell.model, cell.data)
+    for _ in range(int(0.3 / cellmod.TIMESTEP_S)):
+        mujoco.mj_step(cell.model, cell.data)
+
+
+def _details(run, picked):
+    return {"picked": picked, "collisions": sorted({f"{p}: {a} ~ {b}" for p, a, b in run.collisions})[:6],
+            "sim_s": round(run.d.time, 3)}

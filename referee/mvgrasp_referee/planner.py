@@ -1,0 +1,182 @@
+"""The planner under judgement: the running mvgrasp service, called over gRPC
+with the Python stubs generated from proto/ (client/python/mvgrasp_client.py).
+"""
+
+import importlib.util
+import os
+import time
+
+import numpy as np
+
+from . import assets
+from .bridge import quat_xyzw
+
+WORKSPACE = ((-0.25, -0.25, -0.05), (0.25, 0.25, 0.45))
+POLICIES = {"default": None, "entropy": 1, "all": 2, "top-down": 3, "random": 4}
+
+
+def _client_module():
+    path = os.path.join(assets.ROOT, "client", "python", "mvgrasp_client.py")
+    spec = importlib.util.spec_from_file_location("mvgrasp_client", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+class Planner:
+    """A gRPC connection to the service, and the request options of a setting."""
+
+    def __init__(self, address, policy="default", min_quality=None, max_grasps=10, timeout_s=30.0):
+        import grpc  # noqa: PLC0415
+
+        if policy not in POLICIES:
+            raise ValueError(f"unknown view policy {policy!r} (one of {', '.join(POLICIES)})")
+        self.pb, rpc = _client_module().stubs()
+        self.channel = grpc.insecure_channel(address)
+        self.stub = rpc.GraspPlannerStub(self.channel)
+        self.policy, self.min_quality, self.max_grasps = policy, min_quality, max_grasps
+        self.timeout_s = timeout_s
+
+    def model_info(self):
+        info = self.stub.GetModelInfo(self.pb.GetModelInfoRequest(), timeout=self.timeout_s)
+        return {"model_version": info.model_version, "backend": info.backend}
+
+    def plan(self, depth, pose, seed=0):
+        """Ranked grasps, detected objects and the table plane for one frame,
+        and the call's wall time in ms."""
+        pb = self.pb
+        fx, fy, cx, cy = pose.intrinsics
+        t = pose.world_from_camera
+        qx, qy, qz, qw = quat_xyzw(t[:3, :3])
+        options = {"max_grasps": self.max_grasps, "random_seed": seed}
+        if self.min_quality is not None:
+            options["min_quality"] = self.min_quality
+        if POLICIES[self.policy] is not None:
+            options["view_policy"] = POLICIES[self.policy]
+        (x0, y0, z0), (x1, y1, z1) = WORKSPACE
+        request = pb.PlanGraspsRequest(
+            depth=pb.DepthImage(width=pose.width, height=pose.height, encoding=pb.DEPTH_ENCODING_FLOAT32_M,
+                                data=np.ascontiguousarray(depth, "<f4").tobytes(),
+                                intrinsics=pb.CameraIntrinsics(fx=fx, fy=fy, cx=cx, cy=cy)),
+            world_from_camera=pb.Pose(position=pb.Vector3(x=t[0, 3], y=t[1, 3], z=t[2, 3]),
+                                      orientation=pb.Quaternion(x=qx, y=qy, z=qz, w=qw)),
+            workspace=pb.Workspace(min=pb.Vector3(x=x0, y=y0, z=z0), max=pb.Vector3(x=x1, y=y1, z=z1)),
+            **options,
+        )
+        start = time.perf_counter()
+        response = self.stub.PlanGrasps(request, timeout=self.timeout_s)
+        elapsed_ms = (time.perf_counter() - start) * 1000.0
+        grasps = [{
+            "position": [g.pose.position.x, g.pose.position.y, g.pose.position.z],
+            "orientation": [g.pose.orientation.x, g.pose.orientation.y, g.pose.orientation.z, g.pose.orientation.w],
+            "width_m": g.width_m, "quality": g.quality, "object": g.object_id,
+            "view": pb.ViewAxis.Name(g.view).removeprefix("VIEW_AXIS_").lower(),
+        } for g in response.grasps]
+        objects = [{
+            "id": o.id,
+            "position": [o.world_from_object.position.x, o.world_from_object.position.y,
+                         o.world_from_object.position.z],
+            "orientation": [o.world_from_object.orientation.x, o.world_from_object.orientation.y,
+                            o.world_from_object.orientation.z, o.world_from_object.orientation.w],
+            "extent_min_m": [o.extent_min_m.x, o.extent_min_m.y, o.extent_min_m.z],
+            "extent_max_m": [o.extent_max_m.x, o.extent_max_m.y, o.extent_max_m.z],
+        } for o in response.objects]
+        table = {"normal": [response.table.normal.x, response.table.normal.y, response.table.normal.z],
+                 "offset_m": response.table.offset_m}
+        return {"grasps": grasps, "objects": objects, "table": table, "server_ms": response.timings.total_ms,
+                "call_ms": elapsed_ms}
+
+    def close(self):
+        self.channel.close()
+
+
+def _rotate(q_xyzw, v):
+    x, y, z, w = q_xyzw
+    r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return r @ np.asarray(v, float)
+
+
+def obstacles(plan):
+    """The detected objects as boxes and the table as a slab, as the
+    robot-bridge builds them from a planner's answer (robot-bridge/src/planner.rs)."""
+    boxes = []
+    for o in plan["objects"]:
+        lo, hi = np.array(o["extent_min_m"]), np.array(o["extent_max_m"])
+        centre = np.array(o["position"]) + _rotate(o["orientation"], (lo + hi) / 2)
+        boxes.append({"name": f"object {o['id']}", "position": centre.tolist(), "orientation": o["orientation"],
+                      "half_extents_m": ((hi - lo) / 2).tolist()})
+    n = np.array(plan["table"]["normal"], float)
+    if np.linalg.norm(n) < 0.5 or abs(n[2]) < 1e-6:
+        return boxes, None
+    (x0, y0, _), (x1, y1, _) = WORKSPACE
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+    surface = np.array([cx, cy, -(plan["table"]["offset_m"] + n[0] * cx + n[1] * cy) / n[2]])
+    axis = np.cross([0.0, 0.0, 1.0], n)
+    angle = np.arctan2(np.linalg.norm(axis), n[2])
+    if np.linalg.norm(axis) > 1e-9:
+        axis = axis / np.linalg.norm(axis) * np.sin(angle / 2)
+        q = [axis[0], axis[1], axis[2], np.cos(angle / 2)]
+    else:
+        q = [0.0, 0.0, 0.0, 1.0]
+    table = {"name": "table", "position": (surface - 0.025 * n).tolist(), "orientation": q,
+             "half_extents_m": [(x1 - x0) / 2 + 0.3, (y1 - y0) / 2 + 0.3, 0.025]}
+    return boxes, table
+
+
+class OraclePlanner:
+    """Ground-truth grasps, to check the executor rather than a planner: for
+    each object, top-down through its centre of mass (which it knows),
+    closing across the object's narrowest section there (the pads' 28 mm
+    wide slab through the centre of mass, turned in 10-degree steps; the
+    footprint's minor axis if no section fits the hand), at the true width,
+    the fingertips 4 cm below the section's top but at least 12 mm above the
+    table (half the height of an object lower than 24 mm)."""
+
+    ground_truth = True
+    PAD_HALF_WIDTH_M = 0.014
+    MAX_WIDTH_M = 0.13
+
+    def model_info(self):
+        return {"model_version": "oracle (ground truth)", "backend": "referee"}
+
+    def grasp_for(self, cell, i):
+        import mujoco  # noqa: PLC0415
+
+        p, q = cell.object_pose(i)
+        r = np.zeros(9)
+        mujoco.mju_quat2Mat(r, q)
+        world = cell.bodies[i].surface @ r.reshape(3, 3).T + p
+        com = cell.data.xipos[cell.object_body_ids[i]].copy()
+        best = None
+        for angle in np.radians(np.arange(0.0, 180.0, 10.0)):
+            x = np.array([np.cos(angle), np.sin(angle), 0.0])
+            y = np.array([-np.sin(angle), np.cos(angle), 0.0])
+            slab = world[np.abs((world - com) @ y) < self.PAD_HALF_WIDTH_M]
+            if len(slab) < 10:
+                continue
+            along = (slab - com) @ x
+            width = float(np.ptp(along))
+            if width <= self.MAX_WIDTH_M and (best is None or width < best[0]):
+                best = (width, x, (along.max() + along.min()) / 2, float(slab[:, 2].max()))
+        if best is None:
+            xy = world[:, :2] - world[:, :2].mean(axis=0)
+            minor = np.linalg.svd(xy, full_matrices=False)[2][1]
+            x = np.array([minor[0], minor[1], 0.0])
+            along = (world - com) @ x
+            best = (float(np.ptp(along)), x, (along.max() + along.min()) / 2, float(world[:, 2].max()))
+        width, x, middle, top = best
+        centre = com + middle * x
+        z = np.array([0.0, 0.0, -1.0])
+        y = np.cross(z, x)
+        return {"position": [float(centre[0]), float(centre[1]), max(top - 0.04, min(0.012, top / 2))],
+                "orientation": quat_xyzw(np.stack([x, y, z], axis=1)),
+                "width_m": width, "quality": 1.0, "object": None, "view": "top"}
+
+    def plan_truth(self, cell, remaining):
+        return {"grasps": [self.grasp_for(cell, i) for i in remaining], "objects": [],
+                "table": {"normal": [0.0, 0.0, 1.0], "offset_m": 0.0}, "server_ms": 0.0, "call_ms": 0.0}
+
+    def close(self):
+        pass

@@ -1,0 +1,84 @@
+"""The written split of objects: what may be trained or tuned on, and what only reports.
+
+- `train`: `pybullet_data/random_urdfs/000`-`799`. Only this pool (with our
+  procedural families and sample meshes) may feed `sim datagen`, training
+  or tuning of any planner setting.
+- `test-a`: `random_urdfs/800`-`999`, at the URDF's scale.
+- `test-b`: household shapes at realistic sizes (4-25 cm): robosuite's
+  objects and pybullet_data's named meshes.
+
+`check_split()` asserts the pools are disjoint and complete; every run
+calls it, and so do the tests.
+"""
+
+from dataclasses import dataclass, field
+
+TRAIN_RANDOM = range(0, 800)
+TEST_A_RANDOM = range(800, 1000)
+
+
+@dataclass(frozen=True)
+class ObjectSpec:
+    """One object: where its mesh comes from and how big it is."""
+
+    name: str
+    source: str  # "random_urdf", "pybullet_mesh", "robosuite_mesh" or "robosuite_boxes"
+    path: str  # relative to its asset folder
+    scale: float = 1.0  # mesh units -> metres, before `max_extent_m`
+    max_extent_m: float = 0.0  # if > 0, the longest side is scaled to this
+    extra: dict = field(default_factory=dict, compare=False, hash=False)
+
+
+def random_urdf(index):
+    """`random_urdfs/NNN`, at the URDF's mesh scale (0.015)."""
+    n = f"{index:03d}"
+    return ObjectSpec(f"random_{n}", "random_urdf", f"random_urdfs/{n}/{n}.obj", scale=0.015)
+
+
+# Household shapes: longest side in metres (real objects of that kind).
+HOUSEHOLD = (
+    ObjectSpec("mug", "pybullet_mesh", "objects/mug.obj", max_extent_m=0.12),
+    ObjectSpec("duck", "pybullet_mesh", "duck_vhacd.obj", max_extent_m=0.10),
+    ObjectSpec("teddy", "pybullet_mesh", "teddy2_VHACD_CHs.obj", max_extent_m=0.16),
+    ObjectSpec("bunny", "pybullet_mesh", "bunny.obj", max_extent_m=0.12),
+    ObjectSpec("soccer_ball", "pybullet_mesh", "soccerball.obj", max_extent_m=0.09),
+    ObjectSpec("lego_brick", "pybullet_mesh", "lego/lego.obj", max_extent_m=0.064),
+    ObjectSpec("jenga_block", "pybullet_mesh", "jenga/jenga.obj", extra={"axis_scale": (0.15, 0.05, 0.03)}),
+    ObjectSpec("bottle", "robosuite_mesh", "objects/meshes/bottle.stl", max_extent_m=0.22),
+    ObjectSpec("can", "robosuite_mesh", "objects/meshes/can.stl", max_extent_m=0.12),
+    ObjectSpec("cereal", "robosuite_mesh", "objects/meshes/cereal.stl", max_extent_m=0.18),
+    ObjectSpec("milk", "robosuite_mesh", "objects/meshes/milk.stl", max_extent_m=0.20),
+    ObjectSpec("bread", "robosuite_mesh", "objects/meshes/bread.stl", max_extent_m=0.12),
+    ObjectSpec("lemon", "robosuite_mesh", "objects/meshes/lemon.stl", max_extent_m=0.08),
+    ObjectSpec("round_nut", "robosuite_boxes", "objects/round-nut.xml", max_extent_m=0.10),
+    ObjectSpec("square_nut", "robosuite_boxes", "objects/square-nut.xml", max_extent_m=0.10),
+)
+
+POOLS = {
+    "train": tuple(random_urdf(i) for i in TRAIN_RANDOM),
+    "test-a": tuple(random_urdf(i) for i in TEST_A_RANDOM),
+    "test-b": HOUSEHOLD,
+}
+
+TEST_POOLS = ("test-a", "test-b")
+
+
+def pool(name):
+    """The objects of a pool, in a fixed order."""
+    if name not in POOLS:
+        raise ValueError(f"unknown pool {name!r} (one of {', '.join(POOLS)})")
+    return POOLS[name]
+
+
+def check_split():
+    """Raises if a mesh is in two pools or a random_urdf is in none."""
+    seen = {}
+    for name, objects in POOLS.items():
+        for o in objects:
+            if o.path in seen:
+                raise AssertionError(f"{o.path} is in both {seen[o.path]} and {name}")
+            seen[o.path] = name
+    for i in range(1000):
+        if random_urdf(i).path not in seen:
+            raise AssertionError(f"random_urdfs/{i:03d} is in no pool")
+    return True

@@ -1,0 +1,154 @@
+"""The clear-the-table protocol: episodes of attempts, each judged in physics.
+
+An attempt: the arm parks, the camera takes a depth frame, the planner is
+called over gRPC, the robot-bridge picks the best-ranked grasp it can reach
+(its IK, its collision model, its steps), and the simulated arm runs it.
+Grasps the bridge refuses, and grasps whose pre-grasp move makes the arm
+touch something in the simulator (the state is put back), are counted as
+`unreachable` and the next grasp is tried. An episode ends when the table is
+clear, after the scenario's consecutive failures, when the planner offers
+no grasp or the arm can reach none of them, or after 2 x objects + 4 attempts.
+"""
+
+import time
+
+import mujoco
+import numpy as np
+
+from . import camera as cammod
+from . import executor, gripper, scenes
+from .planner import obstacles
+
+MAX_GRASPS_TRIED = 10
+
+
+def snapshot(cell):
+    d = cell.data
+    return d.qpos.copy(), d.qvel.copy(), d.act.copy(), d.ctrl.copy(), d.time
+
+
+def restore(cell, state):
+    d = cell.data
+    d.qpos[:], d.qvel[:], d.act[:], d.ctrl[:], d.time = state
+    mujoco.mj_forward(cell.model, d)
+
+
+def target_of(cell, grasp, remaining):
+    """The object nearest the grasp centre (the one it is meant for)."""
+    p = np.array(grasp["position"])
+    best, best_d = None, np.inf
+    for i in remaining:
+        body = cell.object_body_ids[i]
+        geoms = [g for g in range(cell.model.ngeom) if cell.model.geom_bodyid[g] == body and cell.model.geom_group[g] == 1]
+        d = np.linalg.norm(cell.data.geom_xpos[geoms[0]] - p) if geoms else np.inf
+        pos = cell.object_pose(i)[0]
+        d = min(d, np.linalg.norm(pos - p))
+        if d < best_d:
+            best, best_d = i, d
+    return best
+
+
+def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, resolution="640x480", noise=False,
+                snapshots=None):
+    """One episode; returns its record (attempts and counts)."""
+    cell, specs = scenes.make(scenario, pool, seed, episode)
+    rng = np.random.default_rng([seed, episode, 13])
+    pose = cammod.sample_pose(camera_kind, rng, resolution)
+    cam = cammod.DepthCamera(cell.model, pose.width, pose.height)
+    table = gripper.gap_table(cell)
+    tcp = gripper.tcp_in_flange(cell)
+    allowed_failures = scenes.SCENARIOS[scenario][1]
+    initial = [i for i in range(len(specs)) if scenes.on_table(cell, i)]
+    record = {"scenario": scenario, "pool": pool, "camera": camera_kind, "seed": seed, "episode": episode,
+              "objects": [s.name for s in specs], "initial": len(initial), "attempts": [], "end": None,
+              "camera_pose": pose.world_from_camera.round(4).tolist()}
+    removed, failures = set(), 0
+    try:
+        for attempt in range(2 * len(specs) + 4):
+            remaining = [i for i in initial if i not in removed and scenes.on_table(cell, i)]
+            if not remaining:
+                record["end"] = "clear"
+                break
+            if failures >= allowed_failures:
+                record["end"] = "failures"
+                break
+            depth = cam.depth(cell.model, cell.data, pose)
+            if noise:
+                depth = cammod.add_noise(depth, rng, 0.0)
+            if getattr(planner, "ground_truth", False):
+                plan = planner.plan_truth(cell, remaining)
+            else:
+                plan = planner.plan(depth, pose, seed=seed * 1000 + attempt)
+            entry = {"attempt": attempt, "plan_ms": round(plan["call_ms"], 2), "server_ms": round(plan["server_ms"], 2),
+                     "detected": len(plan["objects"]), "grasps": len(plan["grasps"]), "unreachable": 0,
+                     "refused": []}
+            if not plan["grasps"]:
+                entry["outcome"] = "no-grasp"
+                record["attempts"].append(entry)
+                record["end"] = "no-grasp"
+                break
+            boxes, table_box = obstacles(plan)
+            grasps = plan["grasps"][:MAX_GRASPS_TRIED]
+            outcome, details = None, {}
+            start = 0
+            while start < len(grasps):
+                index_of = {o["id"]: k for k, o in enumerate(plan["objects"])}
+                asked = [{"position": g["position"], "orientation": g["orientation"], "width_m": g["width_m"],
+                          "quality": g["quality"], "object": index_of.get(g["object"])} for g in grasps[start:]]
+                answer = bridge.plan(asked, boxes, table_box, cell.arm_q())
+                if answer["grasp_index"] is None:
+                    entry["unreachable"] += len(grasps) - start
+                    entry["refused"] += [r["reason"] for r in answer["refused"]][:3]
+                    break
+                chosen = start + answer["grasp_index"]
+                entry["unreachable"] += answer["grasp_index"]
+                entry["refused"] += [r["reason"] for r in answer["refused"]][:3]
+                grasp = grasps[chosen]
+                target = target_of(cell, grasp, remaining)
+                state = snapshot(cell)
+                outcome, details = executor.execute(cell, answer["steps"], target, table, tcp)
+                if outcome == "unreachable-sim":
+                    entry["unreachable"] += 1
+                    entry["refused"].append("simulated arm touched " + "; ".join(details["collisions"][:2]))
+                    restore(cell, state)
+                    start = chosen + 1
+                    outcome = None
+                    continue
+                entry.update({"grasp_rank": chosen, "quality": round(grasp["quality"], 4),
+                              "width_m": round(grasp["width_m"], 4), "view": grasp["view"],
+                              "grasp": {"position": [round(v, 4) for v in grasp["position"]],
+                                        "orientation": [round(v, 5) for v in grasp["orientation"]]},
+                              "target": specs[target].name if target is not None else None, **details})
+                break
+            if outcome is None:
+                entry["outcome"] = "unreachable"
+                record["attempts"].append(entry)
+                record["end"] = "unreachable"
+                break
+            entry["outcome"] = outcome
+            record["attempts"].append(entry)
+            if snapshots is not None and outcome != "success":
+                entry["snapshot"] = snapshots(cell, pose, depth, entry, record)
+            if outcome != "success":
+                executor.park(cell)
+            if outcome == "success":
+                removed.add(details["picked"])
+                failures = 0
+            else:
+                failures += 1
+        else:
+            record["end"] = "attempts"
+        if record["end"] is None:
+            record["end"] = "clear" if not [i for i in initial if i not in removed and scenes.on_table(cell, i)] \
+                else "failures"
+    finally:
+        cam.close()
+    record["removed"] = len(removed)
+    record["lost"] = sum(1 for i in initial if i not in removed and not scenes.on_table(cell, i))
+    return record
+
+
+def timed(fn, *args, **kwargs):
+    start = time.perf_counter()
+    out = fn(*args, **kwargs)
+    return out, time.perf_counter() - start

@@ -1,0 +1,109 @@
+"""Scenes of the clear-the-table protocol, fixed by seed.
+
+- `isolated`: one object in a random stable pose (dropped from a random
+  orientation near the middle of the table and settled);
+- `packed`: five objects standing close (upright as their mesh stands,
+  2-3 cm apart, turned at random);
+- `pile`: five objects dropped from random orientations into a 16 cm box,
+  settled, then the box is taken away.
+"""
+
+import math
+
+import mujoco
+import numpy as np
+
+from . import cell as cellmod
+from . import objects as objmod
+from . import pools
+
+SCENARIOS = {"isolated": (1, 3), "packed": (5, 4), "pile": (5, 4)}  # objects, consecutive failures allowed
+SETTLE_S = 1.5
+
+
+def random_quat(rng):
+    u = rng.uniform(size=3)
+    return np.array([math.sqrt(1 - u[0]) * math.sin(2 * math.pi * u[1]),
+                     math.sqrt(1 - u[0]) * math.cos(2 * math.pi * u[1]),
+                     math.sqrt(u[0]) * math.sin(2 * math.pi * u[2]),
+                     math.sqrt(u[0]) * math.cos(2 * math.pi * u[2])])
+
+
+def yaw_quat(yaw):
+    return np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
+
+
+def choose_objects(pool_name, scenario, seed, episode):
+    """The objects of one episode: a deterministic draw from the pool."""
+    objects = pools.pool(pool_name)
+    count = SCENARIOS[scenario][0]
+    rng = np.random.default_rng([seed, episode, 7])
+    if scenario == "isolated":
+        return [objects[(seed * 7919 + episode) % len(objects)]] if pool_name != "test-b" \
+            else [objects[episode % len(objects)]]
+    return [objects[i] for i in rng.choice(len(objects), size=count, replace=len(objects) < count)]
+
+
+def _radius(body):
+    return 0.5 * float(np.linalg.norm(body.extents_m[:2]))
+
+
+def placements(scenario, bodies, rng):
+    if scenario == "isolated":
+        b = bodies[0]
+        xy = rng.uniform(-0.05, 0.05, 2)
+        return [((xy[0], xy[1], 0.5 * float(np.max(b.extents_m)) + 0.02), random_quat(rng))]
+    if scenario == "packed":
+        out, placed = [], []
+        for b in bodies:
+            r = _radius(b)
+            for _ in range(200):
+                xy = rng.uniform(-0.12, 0.12, 2)
+                if all(np.linalg.norm(xy - p) > r + pr + 0.02 for p, pr in placed):
+                    break
+            placed.append((xy, r))
+            out.append(((xy[0], xy[1], 0.5 * float(b.extents_m[2]) + 0.005), yaw_quat(rng.uniform(0, 2 * math.pi))))
+        return out
+    if scenario == "pile":
+        out, z = [], 0.0
+        for b in bodies:
+            z += float(np.max(b.extents_m)) + 0.01
+            xy = rng.uniform(-0.04, 0.04, 2)
+            out.append(((xy[0], xy[1], z), random_quat(rng)))
+        return out
+    raise ValueError(f"unknown scenario {scenario!r} (one of {', '.join(SCENARIOS)})")
+
+
+def make(scenario, pool_name, seed, episode):
+    """A settled cell for one episode."""
+    specs = choose_objects(pool_name, scenario, seed, episode)
+    rng = np.random.default_rng([seed, episode, 11])
+    bodies = [objmod.make_body(s, rng) for s in specs]
+    where = placements(scenario, bodies, rng)
+    fixtures = []
+    if scenario == "pile":
+        half, h = 0.08, 0.3
+        fixtures = [(f"pile_wall{k}", size, centre) for k, (size, centre) in enumerate([
+            ((0.005, half, h), (half + 0.005, 0, h)), ((0.005, half, h), (-half - 0.005, 0, h)),
+            ((half, 0.005, h), (0, half + 0.005, h)), ((half, 0.005, h), (0, -half - 0.005, h))])]
+    cell = cellmod.build(bodies, where, fixtures=fixtures)
+    settle(cell)
+    if fixtures:
+        # Take the box away: rebuild without it, objects where they came to rest.
+        rest = [cell.object_pose(i) for i in range(len(bodies))]
+        cell = cellmod.build(bodies, rest)
+        settle(cell)
+    return cell, specs
+
+
+def settle(cell, seconds=SETTLE_S):
+    for _ in range(int(seconds / cellmod.TIMESTEP_S)):
+        mujoco.mj_step(cell.model, cell.data)
+    # Start the episode at rest.
+    cell.data.qvel[:] = 0.0
+
+
+def on_table(cell, i):
+    """Still on the table and in the area the camera and arm serve."""
+    p = cell.object_pose(i)[0]
+    return p[2] > -0.02 and abs(p[0]) < 0.3 and abs(p[1]) < 0.3

@@ -1,0 +1,195 @@
+"""The referee's self-checks: trust the judge before trusting its numbers.
+
+Run by scripts/test.sh (MUJOCO_GL=osmesa, the robot-bridge binary in
+MVGRASP_ROBOT_BRIDGE):
+
+    PYTHONPATH=target/pydeps-referee:referee python3 -m unittest discover -s referee/tests -v
+"""
+
+import math
+import os
+import unittest
+
+import mujoco
+import numpy as np
+
+from mvgrasp_referee import assets, bridge, camera, cell, gripper, objects, planner, pools, protocol, report, scenes
+
+
+def bridge_binary():
+    path = os.environ.get("MVGRASP_ROBOT_BRIDGE")
+    for candidate in ([path] if path else []) + [os.path.join(assets.ROOT, "target", kind, "robot-bridge")
+                                                 for kind in ("release", "debug")]:
+        if candidate and os.path.exists(candidate):
+            return candidate
+    raise unittest.SkipTest("no robot-bridge binary: build it (cargo build -p mvgrasp-robot-bridge) "
+                            "or set MVGRASP_ROBOT_BRIDGE")
+
+
+class SplitTest(unittest.TestCase):
+    def test_pools_are_disjoint_and_cover_every_random_urdf(self):
+        self.assertTrue(pools.check_split())
+        self.assertEqual(len(pools.pool("train")), 800)
+        self.assertEqual({o.path for o in pools.pool("test-a")},
+                         {f"random_urdfs/{i:03d}/{i:03d}.obj" for i in range(800, 1000)})
+        self.assertEqual(len(pools.pool("test-b")), 15)
+
+    def test_an_unknown_pool_is_refused(self):
+        with self.assertRaisesRegex(ValueError, "unknown pool"):
+            pools.pool("test-c")
+
+
+class StatsTest(unittest.TestCase):
+    def test_wilson_interval(self):
+        lo, hi = report.wilson(90, 100)
+        self.assertAlmostEqual(lo, 0.8256, places=3)
+        self.assertAlmostEqual(hi, 0.9448, places=3)
+        self.assertEqual(report.wilson(0, 10)[0], 0.0)
+        self.assertTrue(all(math.isnan(v) for v in report.wilson(0, 0)))
+
+    def test_rows_count_attempts_apart_from_unreachable_and_no_grasp(self):
+        def episode(outcomes, removed, initial, end):
+            return {"scenario": "isolated", "camera": "topdown", "pool": "test-a", "removed": removed,
+                    "initial": initial, "end": end, "lost": 0,
+                    "attempts": [{"outcome": o, "plan_ms": 5.0, "unreachable": u} for o, u in outcomes]}
+        rows = report.rows([episode([("success", 2)], 1, 1, "clear"),
+                            episode([("empty", 0), ("no-grasp", 0)], 0, 1, "no-grasp"),
+                            episode([("unreachable", 3)], 0, 1, "unreachable")])
+        self.assertEqual(len(rows), 1)
+        r = rows[0]
+        self.assertEqual((r["attempts"], r["successes"], r["removed"], r["initial"]), (2, 1, 1, 3))
+        self.assertEqual((r["no_grasp"], r["unreachable"], r["failures"]["empty"]), (1, 5, 1))
+
+
+class CellTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.cell = cell.build([], [])
+
+    def test_bridge_kinematics_and_the_simulated_arm_agree(self):
+        """The robot-bridge's FK and the MJCF arm: flange within 1 mm / 0.1 degree."""
+        b = bridge.Bridge(bridge_binary(), gripper.tcp_in_flange(self.cell))
+        try:
+            c = self.cell
+            flange = c.model.body("arm/right_hand").id
+            world_from_base = cell.world_from_dh_base()
+            rng = np.random.default_rng(4)
+            worst_mm, worst_deg = 0.0, 0.0
+            for _ in range(50):
+                q = rng.uniform(-math.pi, math.pi, 6)
+                c.set_arm(q)
+                mujoco.mj_kinematics(c.model, c.data)
+                sim = np.eye(4)
+                sim[:3, :3] = c.data.xmat[flange].reshape(3, 3)
+                sim[:3, 3] = c.data.xpos[flange]
+                off = np.linalg.inv(sim) @ (world_from_base @ b.fk(q))
+                worst_mm = max(worst_mm, 1000 * np.linalg.norm(off[:3, 3]))
+                angle = math.degrees(math.acos(np.clip((np.trace(off[:3, :3]) - 1) / 2, -1, 1)))
+                worst_deg = max(worst_deg, angle)
+            self.assertLess(worst_mm, 1.0)
+            self.assertLess(worst_deg, 0.1)
+        finally:
+            b.close()
+
+    def test_pad_gap_spans_the_datasheet_stroke(self):
+        """0-140 mm between the pads, driven through the actuators."""
+        angles, gaps = gripper.gap_table(self.cell)
+        self.assertAlmostEqual(gaps[0], 0.140, delta=0.001)
+        self.assertLess(gaps[-1], 0.001)
+        self.assertTrue(np.all(np.diff(gaps) < 0), "the gap closes monotonically with the command")
+        c = cell.build([], [])
+        c.set_arm(np.array([0.0, -1.2, 1.6, -1.97, -1.5708, 0.0]))
+        for width, tolerance in ((0.14, 0.002), (0.07, 0.002), (0.0, 0.002)):
+            gripper.set_command(c, gripper.command_for_width((angles, gaps), width))
+            for _ in range(int(1.0 / cell.TIMESTEP_S)):
+                mujoco.mj_step(c.model, c.data)
+            self.assertAlmostEqual(gripper.pad_gap(c), width, delta=tolerance, msg=f"commanded {width} m")
+
+    def test_squeeze_is_the_stated_force(self):
+        for width in (0.03, 0.08, 0.12):
+            (left, right), gap = gripper.squeeze_probe(width)
+            lo, hi = cell.GRIP_FORCE_N
+            self.assertTrue(lo <= left <= hi and lo <= right <= hi, f"{width} m: {left:.1f} / {right:.1f} N")
+            self.assertLess(abs(left - right) / max(left, right), 0.15)
+            self.assertAlmostEqual(gap, width, delta=0.0015, msg="pads sink under 1.5 mm into a rigid box")
+
+    def test_the_tcp_sits_between_the_fingertips(self):
+        tcp = gripper.tcp_in_flange(self.cell)
+        self.assertLess(np.linalg.norm(tcp[:2]), 1e-6)
+        self.assertAlmostEqual(tcp[2], 0.227, delta=0.005)
+
+
+class CameraTest(unittest.TestCase):
+    def test_depth_back_projects_onto_the_true_surfaces(self):
+        """Rays cast through pixels with the request's intrinsics and pose
+        meet the scene where the depth image says (median < 1 mm)."""
+        c, _ = scenes.make("isolated", "test-b", 1, 0)
+        geomgroup = np.array([1, 1, 1, 0, 0, 0], np.uint8)
+        hit_geom = np.zeros(1, np.int32)
+        for kind in camera.CAMERAS:
+            pose = camera.sample_pose(kind, np.random.default_rng(3), "424x240")
+            cam = camera.DepthCamera(c.model, pose.width, pose.height)
+            try:
+                depth = cam.depth(c.model, c.data, pose)
+            finally:
+                cam.close()
+            points, v, u = camera.back_project(depth, pose)
+            self.assertGreater(len(points), 0.3 * depth.size)
+            eye = pose.world_from_camera[:3, 3]
+            fx, fy, cx, cy = pose.intrinsics
+            errors = []
+            for k in np.random.default_rng(5).choice(len(points), 300, replace=False):
+                ray_cam = np.array([(u[k] - cx) / fx, (v[k] - cy) / fy, 1.0])
+                ray = pose.world_from_camera[:3, :3] @ ray_cam
+                distance = mujoco.mj_ray(c.model, c.data, eye, ray / np.linalg.norm(ray), geomgroup, 1, -1,
+                                         hit_geom)
+                errors.append(abs(distance - np.linalg.norm(points[k] - eye)))
+            self.assertLess(float(np.median(errors)), 0.001, kind)
+
+
+class OracleTest(unittest.TestCase):
+    def test_the_oracle_clears_isolated_test_objects(self):
+        """Ground-truth top-down grasps through the executor and the
+        robot-bridge: >= 90% of the first 8 isolated episodes of each test
+        pool cleared (the whole pools: results/referee/oracle)."""
+        c = cell.build([], [])
+        b = bridge.Bridge(bridge_binary(), gripper.tcp_in_flange(c))
+        try:
+            oracle = planner.OraclePlanner()
+            records = [protocol.run_episode(oracle, b, "isolated", pool, "topdown", 2026, e)
+                       for pool in pools.TEST_POOLS for e in range(8)]
+        finally:
+            b.close()
+        removed = sum(r["removed"] for r in records)
+        initial = sum(r["initial"] for r in records)
+        self.assertEqual(initial, 16)
+        self.assertGreaterEqual(removed / initial, 0.9, [(r["objects"], [a["outcome"] for a in r["attempts"]])
+                                                          for r in records])
+
+    def test_the_same_seed_gives_the_same_record(self):
+        c = cell.build([], [])
+        b = bridge.Bridge(bridge_binary(), gripper.tcp_in_flange(c))
+        try:
+            oracle = planner.OraclePlanner()
+            first = protocol.run_episode(oracle, b, "packed", "test-b", "topdown", 7, 0)
+            second = protocol.run_episode(oracle, b, "packed", "test-b", "topdown", 7, 0)
+        finally:
+            b.close()
+        self.assertGreater(len(first["attempts"]), 0)
+        self.assertEqual(first, second)
+
+
+class ObjectsTest(unittest.TestCase):
+    def test_bodies_have_parts_mass_and_sizes_as_stated(self):
+        rng = np.random.default_rng(0)
+        for spec in (pools.random_urdf(800), pools.HOUSEHOLD[0]):
+            body = objects.make_body(spec, rng)
+            self.assertGreaterEqual(len(body.parts), 1)
+            self.assertTrue(0.01 <= body.mass_kg <= 1200 * body.volume_m3 + 0.01)
+            self.assertLessEqual(float(np.max(body.extents_m)), 0.25)
+        mug = objects.make_body(pools.HOUSEHOLD[0], rng)
+        self.assertAlmostEqual(float(np.max(mug.extents_m)), 0.12, places=6)
+
+
+if __name__ == "__main__":
+    unittest.main()
