@@ -281,7 +281,10 @@ mod tests {
         assert!(path.len() >= 10, "a 10 cm approach sampled every cm");
         let (last, end) = (path.last().unwrap(), &approach["joints"]);
         for i in 0..6 {
-            assert!((last[i].as_f64().unwrap() - end[i].as_f64().unwrap()).abs() < 1e-9, "{last} vs {end}");
+            assert!(
+                (last[i].as_f64().unwrap() - end[i].as_f64().unwrap()).abs() < 1e-9,
+                "{last} vs {end}"
+            );
         }
     }
 
