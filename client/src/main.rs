@@ -73,6 +73,10 @@ struct SceneArgs {
     /// Seed of `--policy random`.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// The paper's single pass over the policy's views: no object goes on
+    /// to its next view when the chosen one gives no grasp (the ablation).
+    #[arg(long)]
+    no_view_cascade: bool,
 }
 
 impl SceneArgs {
@@ -102,6 +106,7 @@ impl SceneArgs {
             min_quality: self.min_quality,
             view_policy: policy as i32,
             random_seed: self.seed,
+            view_cascade: self.no_view_cascade.then_some(false),
             ..scene.request()
         }
     }

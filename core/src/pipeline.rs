@@ -7,9 +7,9 @@ use std::time::{Duration, Instant};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::decode::{
-    Collision, DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, Repairs, Verdict, ViewPlacement,
-    contact_slopes, decode_view, deepen, fit_opening, hand_collision, hand_out_of_view, rank_grasps_vetted,
-    squaring_turn, turn_away,
+    Collision, DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, Ranked, Repairs, Verdict,
+    ViewPlacement, contact_slopes, decode_view, deepen, fit_opening, hand_collision, hand_out_of_view,
+    rank_grasps_vetted, squaring_turn, turn_away,
 };
 use crate::error::{Error, Result};
 use crate::geometry::Workspace;
@@ -50,6 +50,11 @@ pub struct PlanOptions {
     pub view_policy: ViewPolicy,
     /// Keep the rendered views and their maps in the plan (debugging).
     pub keep_views: bool,
+    /// An object whose chosen views give no grasp that clears `min_quality`
+    /// and the hand check goes on to its next view by entropy, until one
+    /// does or its views run out ([`Planner::finish_or_cascade`]). Off: the
+    /// paper's one pass over the policy's views.
+    pub view_cascade: bool,
 }
 
 impl Default for PlanOptions {
@@ -60,6 +65,7 @@ impl Default for PlanOptions {
             min_quality: 0.5,
             view_policy: ViewPolicy::Entropy,
             keep_views: false,
+            view_cascade: true,
         }
     }
 }
@@ -267,8 +273,50 @@ pub struct Prepared {
     /// `(object index, view index)` of each batch entry.
     inferred: Vec<(usize, usize)>,
     batch: ViewBatch,
+    /// Each object's views not inferred yet, best entropy first (the cascade's order).
+    untried: Vec<Vec<usize>>,
+    /// Earlier rounds of the cascade: their entries and maps.
+    earlier: Vec<(usize, usize)>,
+    earlier_maps: Vec<f32>,
     options: PlanOptions,
     timings: StageTimings,
+}
+
+/// The hand check's and the ranking's answer over the views inferred so far.
+struct Vetted {
+    ranked: Ranked<RankedLast>,
+    refusals: Refusals,
+    turned_square: usize,
+}
+
+impl Prepared {
+    /// The maps of earlier cascade rounds followed by `maps`.
+    fn rounds_so_far(&self, maps: &GraspMaps) -> GraspMaps {
+        let mut data = Vec::with_capacity(self.earlier_maps.len() + maps.data.len());
+        data.extend_from_slice(&self.earlier_maps);
+        data.extend_from_slice(&maps.data);
+        GraspMaps {
+            size_px: maps.size_px,
+            len: self.earlier.len() + maps.len,
+            data,
+        }
+    }
+}
+
+/// The views not chosen, by entropy, highest first (ties: the earlier view).
+fn cascade_order(entropies: &[f64], chosen: &[usize]) -> Vec<usize> {
+    let mut rest: Vec<usize> = (0..entropies.len()).filter(|v| !chosen.contains(v)).collect();
+    rest.sort_by(|&a, &b| entropies[b].total_cmp(&entropies[a]).then(a.cmp(&b)));
+    rest
+}
+
+/// What [`Planner::finish_or_cascade`] gives: the plan, or more views to
+/// run through the network first (the next round of the cascade).
+pub enum Finished {
+    /// Every object has a grasp, or no view is left to try.
+    Plan(Box<Plan>),
+    /// Run `Prepared::batch` through the network and finish again.
+    More(Box<Prepared>),
 }
 
 impl Prepared {
@@ -429,6 +477,7 @@ impl Planner {
 
         let mut batch = ViewBatch::new(l);
         let mut inferred = Vec::new();
+        let mut untried = Vec::with_capacity(rendered.len());
         let mut objects = Vec::with_capacity(rendered.len());
         for (index, ((frame, points), views)) in framed.into_iter().zip(rendered).enumerate() {
             let id = index as u32;
@@ -438,6 +487,7 @@ impl Planner {
                 batch.push(&views[v].image);
                 inferred.push((index, v));
             }
+            untried.push(cascade_order(&entropies, &chosen));
             let reports = views
                 .iter()
                 .zip(&entropies)
@@ -470,26 +520,91 @@ impl Planner {
             view,
             inferred,
             batch,
+            untried,
+            earlier: Vec::new(),
+            earlier_maps: Vec::new(),
             options: options.clone(),
             timings,
         })
     }
 
-    /// Maps of the prepared batch -> ranked grasps.
-    pub fn finish(&self, prepared: Prepared, maps: &GraspMaps) -> Result<Plan> {
+    /// Maps of the prepared batch -> ranked grasps, or, with
+    /// [`PlanOptions::view_cascade`], the next views of the objects that have
+    /// no grasp yet (clearing `min_quality` and the hand check) while any
+    /// such object has a view left. Every round's maps count in the plan.
+    pub fn finish_or_cascade(&self, mut prepared: Prepared, maps: &GraspMaps) -> Result<Finished> {
         maps.check_matches(&prepared.batch)?;
-        let start = Instant::now();
-        let Prepared {
-            objects,
-            table,
-            view,
-            inferred,
-            options,
-            mut timings,
-            ..
-        } = prepared;
+        if prepared.options.view_cascade && prepared.untried.iter().any(|u| !u.is_empty()) {
+            let start = Instant::now();
+            let all = prepared.rounds_so_far(maps);
+            let entries: Vec<(usize, usize)> = prepared
+                .earlier
+                .iter()
+                .chain(&prepared.inferred)
+                .copied()
+                .collect();
+            let covered = self.objects_with_grasps(&prepared, &entries, &all);
+            let mut batch = ViewBatch::new(prepared.batch.size_px);
+            let mut next = Vec::new();
+            for (index, (o, untried)) in prepared.objects.iter_mut().zip(&mut prepared.untried).enumerate() {
+                if covered[index] || untried.is_empty() {
+                    continue;
+                }
+                let v = untried.remove(0);
+                batch.push(&o.views[v].image);
+                o.object.views[v].inferred = true;
+                next.push((index, v));
+            }
+            prepared.timings.decode += start.elapsed();
+            if !next.is_empty() {
+                prepared.earlier = entries;
+                prepared.earlier_maps = all.data;
+                prepared.inferred = next;
+                prepared.batch = batch;
+                return Ok(Finished::More(Box::new(prepared)));
+            }
+        }
+        self.finish(prepared, maps)
+            .map(|plan| Finished::Plan(Box::new(plan)))
+    }
+
+    /// Which objects have at least one grasp that clears `min_quality` and
+    /// the hand check in the maps so far.
+    fn objects_with_grasps(
+        &self,
+        prepared: &Prepared,
+        entries: &[(usize, usize)],
+        maps: &GraspMaps,
+    ) -> Vec<bool> {
+        let options = PlanOptions {
+            max_grasps: usize::MAX,
+            keep_views: false,
+            ..prepared.options.clone()
+        };
+        // One grasp per object answers the question: the check stops there.
+        let vetted = self.decode_and_rank(prepared, entries, maps, &options, 1);
+        let mut covered = vec![false; prepared.objects.len()];
+        for g in &vetted.ranked.grasps {
+            if let Some(i) = prepared.objects.iter().position(|o| o.object.id == g.object_id) {
+                covered[i] = true;
+            }
+        }
+        covered
+    }
+
+    /// Decodes every inferred view (`entries`, rows of `maps`), checks the
+    /// hand and ranks: the grasps, and what the check refused, deferred or turned.
+    fn decode_and_rank(
+        &self,
+        prepared: &Prepared,
+        entries: &[(usize, usize)],
+        maps: &GraspMaps,
+        options: &PlanOptions,
+        max_per_object: usize,
+    ) -> Vetted {
+        let (objects, table, view) = (&prepared.objects, &prepared.table, &prepared.view);
         let mut grasps = Vec::new();
-        for (batch_index, &(object, view)) in inferred.iter().enumerate() {
+        for (batch_index, &(object, view)) in entries.iter().enumerate() {
             let o = &objects[object];
             let placement = ViewPlacement {
                 view: &o.views[view],
@@ -502,7 +617,7 @@ impl Planner {
                 batch_index,
                 &self.contract,
                 &options.gripper,
-                &table,
+                table,
                 options.min_quality,
                 &self.config.decode,
             ));
@@ -522,14 +637,14 @@ impl Planner {
             grasps,
             &RankConfig {
                 min_quality: options.min_quality,
-                max_per_object: self.config.max_grasps_per_object,
+                max_per_object,
                 max_grasps: options.max_grasps,
             },
             |g| {
                 let hand = &self.config.hand;
                 let own = objects.iter().position(|o| o.object.id == g.object_id);
                 let hit = |pose: &Isometry3<f64>, width: f64| {
-                    hand_collision(pose, width, &options.gripper, hand, &table, &obstacles, own)
+                    hand_collision(pose, width, &options.gripper, hand, table, &obstacles, own)
                 };
                 let mut refuse = |c: Collision| {
                     match c {
@@ -634,7 +749,7 @@ impl Planner {
                         g.width_m,
                         &options.gripper,
                         hand,
-                        &table,
+                        table,
                         self.config.decode.table_clearance_m,
                         |pose| hit(pose, g.width_m).is_none(),
                     )
@@ -668,6 +783,43 @@ impl Planner {
                 }
             },
         );
+        Vetted {
+            ranked,
+            refusals,
+            turned_square,
+        }
+    }
+
+    /// Maps of the prepared batch (and of earlier cascade rounds) -> ranked
+    /// grasps; no further view is inferred.
+    pub fn finish(&self, prepared: Prepared, maps: &GraspMaps) -> Result<Plan> {
+        maps.check_matches(&prepared.batch)?;
+        let start = Instant::now();
+        let maps = prepared.rounds_so_far(maps);
+        let inferred: Vec<(usize, usize)> = prepared
+            .earlier
+            .iter()
+            .chain(&prepared.inferred)
+            .copied()
+            .collect();
+        let Vetted {
+            ranked,
+            refusals,
+            turned_square,
+        } = self.decode_and_rank(
+            &prepared,
+            &inferred,
+            &maps,
+            &prepared.options,
+            self.config.max_grasps_per_object,
+        );
+        let Prepared {
+            objects,
+            table,
+            options,
+            mut timings,
+            ..
+        } = prepared;
         let count = |why: RankedLast| ranked.deferred.iter().filter(|&&d| d == why).count();
         let mut debug_views = Vec::new();
         if options.keep_views {
@@ -686,7 +838,7 @@ impl Planner {
                 }
             }
         }
-        timings.decode = start.elapsed();
+        timings.decode += start.elapsed();
         Ok(Plan {
             grasps: ranked.grasps,
             refused_for_collision: ranked.refused,
@@ -716,18 +868,25 @@ impl Planner {
             )));
         }
         let mut prepared = self.prepare(scene, options)?;
-        let start = Instant::now();
-        let maps = if prepared.batch.len == 0 {
-            GraspMaps {
-                size_px: prepared.batch.size_px,
-                len: 0,
-                data: Vec::new(),
+        let mut inference = Duration::ZERO;
+        loop {
+            let start = Instant::now();
+            let maps = if prepared.batch.len == 0 {
+                GraspMaps {
+                    size_px: prepared.batch.size_px,
+                    len: 0,
+                    data: Vec::new(),
+                }
+            } else {
+                net.infer(&prepared.batch)?
+            };
+            inference += start.elapsed();
+            prepared.set_inference_time(inference);
+            match self.finish_or_cascade(prepared, &maps)? {
+                Finished::Plan(plan) => return Ok(*plan),
+                Finished::More(next) => prepared = *next,
             }
-        } else {
-            net.infer(&prepared.batch)?
-        };
-        prepared.set_inference_time(start.elapsed());
-        self.finish(prepared, &maps)
+        }
     }
 }
 

@@ -9,13 +9,12 @@ import sys
 import time
 
 SUITES = {
-    # scenario -> episodes per camera and pool
-    "oracle": {"isolated": {"test-a": 40, "test-b": 45}},
-    "quick": {"isolated": {"test-a": 3, "test-b": 3}, "packed": {"test-b": 1}, "pile": {"test-a": 1}},
-    "standard": {"isolated": {"test-a": 60, "test-b": 60}, "packed": {"test-a": 10, "test-b": 10},
-                 "pile": {"test-a": 10, "test-b": 10}},
-    "full": {"isolated": {"test-a": 200, "test-b": 90}, "packed": {"test-a": 25, "test-b": 25},
-             "pile": {"test-a": 25, "test-b": 25}},
+    # scenario -> episodes per camera and pool ("*": any pool not named)
+    "oracle": {"isolated": {"*": 40, "test-b": 45}},
+    "quick": {"isolated": {"*": 3}, "packed": {"test-b": 1, "train": 1}, "pile": {"test-a": 1, "train": 1}},
+    "tune": {"isolated": {"*": 40}, "packed": {"*": 6}, "pile": {"*": 6}},
+    "standard": {"isolated": {"*": 60}, "packed": {"*": 10}, "pile": {"*": 10}},
+    "full": {"isolated": {"*": 200, "test-b": 90}, "packed": {"*": 25}, "pile": {"*": 25}},
 }
 
 
@@ -32,6 +31,8 @@ def parse(argv):
                    "(default: the server's; entropy, all, top-down, random)")
     p.add_argument("--min-quality", type=float, default=None, help="tau asked of the planner (default: the server's)")
     p.add_argument("--max-grasps", type=int, default=10)
+    p.add_argument("--no-view-cascade", action="store_true",
+                   help="ask for the paper's single pass over the policy's views (the ablation)")
     p.add_argument("--oracle", action="store_true",
                    help="ground-truth grasps instead of the planner (the executor's self-check)")
     p.add_argument("--seed", type=int, default=2026)
@@ -61,7 +62,7 @@ def jobs(args):
         for cam in cameras:
             for pool in pool_names:
                 per_pool = SUITES[args.suite].get(scenario, {})
-                count = per_pool.get(pool, 0)
+                count = per_pool.get(pool, per_pool.get("*", 0))
                 out += [(scenario, pool, cam, e) for e in range(count)]
     return out
 
@@ -75,7 +76,8 @@ def _init(args):
     probe = cell.build([], [])
     _worker["bridge"] = bridge.Bridge(args.bridge, gripper.tcp_in_flange(probe))
     _worker["planner"] = planner.OraclePlanner() if args.oracle else planner.Planner(
-        args.server, args.policy, args.min_quality, args.max_grasps)
+        args.server, args.policy, args.min_quality, args.max_grasps,
+        view_cascade=False if args.no_view_cascade else None)
     _worker["args"] = args
     _worker["renderers"] = {}
 
@@ -127,7 +129,8 @@ def main(argv=None):
                   f"{time.perf_counter() - start:.0f} s", end="", file=sys.stderr, flush=True)
     print(file=sys.stderr)
     meta = {**info, "suite": args.suite, "policy": args.policy, "min_quality": args.min_quality,
-            "max_grasps": args.max_grasps, "seed": args.seed, "resolution": args.resolution, "noise": args.noise,
+            "max_grasps": args.max_grasps, "view_cascade": not args.no_view_cascade, "seed": args.seed,
+            "resolution": args.resolution, "noise": args.noise,
             "oracle": args.oracle, "workers": args.workers, "wall_s": time.perf_counter() - start,
             "command": "scripts/referee.sh " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))}
     table = report.write(args.out, meta, episodes)

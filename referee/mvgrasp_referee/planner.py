@@ -26,7 +26,8 @@ def _client_module():
 class Planner:
     """A gRPC connection to the service, and the request options of a setting."""
 
-    def __init__(self, address, policy="default", min_quality=None, max_grasps=10, timeout_s=30.0):
+    def __init__(self, address, policy="default", min_quality=None, max_grasps=10, timeout_s=30.0,
+                 view_cascade=None):
         import grpc  # noqa: PLC0415
 
         if policy not in POLICIES:
@@ -36,6 +37,7 @@ class Planner:
         self.stub = rpc.GraspPlannerStub(self.channel)
         self.policy, self.min_quality, self.max_grasps = policy, min_quality, max_grasps
         self.timeout_s = timeout_s
+        self.view_cascade = view_cascade
 
     def model_info(self):
         info = self.stub.GetModelInfo(self.pb.GetModelInfoRequest(), timeout=self.timeout_s)
@@ -53,6 +55,8 @@ class Planner:
             options["min_quality"] = self.min_quality
         if POLICIES[self.policy] is not None:
             options["view_policy"] = POLICIES[self.policy]
+        if self.view_cascade is not None:
+            options["view_cascade"] = self.view_cascade
         (x0, y0, z0), (x1, y1, z1) = WORKSPACE
         request = pb.PlanGraspsRequest(
             depth=pb.DepthImage(width=pose.width, height=pose.height, encoding=pb.DEPTH_ENCODING_FLOAT32_M,

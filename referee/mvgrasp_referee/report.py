@@ -72,7 +72,8 @@ def markdown(meta, table):
         "# Referee run",
         "",
         f"Planner `{meta['model_version']}` ({meta['backend']}), request: view policy `{meta['policy']}`, "
-        f"min_quality {meta['min_quality']}, max_grasps {meta['max_grasps']}. Suite `{meta['suite']}`, "
+        f"min_quality {meta['min_quality']}, max_grasps {meta['max_grasps']}"
+        f"{'' if meta.get('view_cascade', True) else ', no view cascade'}. Suite `{meta['suite']}`, "
         f"seed {meta['seed']}, {meta['resolution']} depth{' with noise' if meta['noise'] else ''}. "
         f"Command: `{meta['command']}`.",
         "",

@@ -171,6 +171,7 @@ pub fn options_of(request: &pb::PlanGraspsRequest, defaults: &RequestDefaults) -
         min_quality: request.min_quality.unwrap_or(defaults.min_quality),
         view_policy,
         keep_views: request.include_debug_views,
+        view_cascade: request.view_cascade.unwrap_or(true),
     };
     options.validate()?;
     Ok(options)

@@ -7,7 +7,7 @@ use std::{
 };
 
 use futures_util::{Stream, StreamExt};
-use mvgrasp_core::{GraspMaps, Planner, PlannerConfig};
+use mvgrasp_core::{Finished, GraspMaps, Planner, PlannerConfig};
 use mvgrasp_proto::v1::{self as pb, grasp_planner_server::GraspPlanner};
 use tokio::sync::Semaphore;
 use tonic::{Code, Request, Response, Status, Streaming};
@@ -101,33 +101,43 @@ impl PlannerState {
         .instrument(tracing::debug_span!("prepare"))
         .await?;
 
-        check_deadline("inference")?;
+        // The network, then decoding; again for the objects the view cascade
+        // sends on to their next view.
         let mut prepared = prepared;
-        let (maps, waited) = if prepared.batch().len == 0 {
-            let size_px = prepared.batch().size_px;
-            let empty = GraspMaps {
-                size_px,
-                len: 0,
-                data: Vec::new(),
+        let mut inference = Duration::ZERO;
+        let plan = loop {
+            check_deadline("inference")?;
+            let (maps, waited) = if prepared.batch().len == 0 {
+                let size_px = prepared.batch().size_px;
+                let empty = GraspMaps {
+                    size_px,
+                    len: 0,
+                    data: Vec::new(),
+                };
+                (empty, Duration::ZERO)
+            } else {
+                self.batcher
+                    .infer(prepared.batch().clone(), deadline)
+                    .instrument(tracing::debug_span!("inference", views = prepared.batch().len))
+                    .await?
             };
-            (empty, Duration::ZERO)
-        } else {
-            self.batcher
-                .infer(prepared.batch().clone(), deadline)
-                .instrument(tracing::debug_span!("inference", views = prepared.batch().len))
-                .await?
-        };
-        prepared.set_inference_time(waited);
+            inference += waited;
+            prepared.set_inference_time(inference);
 
-        let permit = self.cpu_permit().await?;
-        check_deadline("decode")?;
-        let state = Arc::clone(self);
-        let plan = blocking(move || {
-            let _permit = permit;
-            Ok(state.planner.finish(prepared, &maps)?)
-        })
-        .instrument(tracing::debug_span!("decode"))
-        .await?;
+            let permit = self.cpu_permit().await?;
+            check_deadline("decode")?;
+            let state = Arc::clone(self);
+            let finished = blocking(move || {
+                let _permit = permit;
+                Ok(state.planner.finish_or_cascade(prepared, &maps)?)
+            })
+            .instrument(tracing::debug_span!("decode"))
+            .await?;
+            match finished {
+                Finished::Plan(plan) => break *plan,
+                Finished::More(next) => prepared = *next,
+            }
+        };
 
         let total_s = started.elapsed().as_secs_f64();
         self.observe_plan(&plan);

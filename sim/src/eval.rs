@@ -851,6 +851,7 @@ impl GraspSource for Remote {
         });
         request.max_grasps = u32::try_from(options.max_grasps).unwrap_or(u32::MAX);
         request.min_quality = Some(options.min_quality);
+        request.view_cascade = Some(options.view_cascade);
         request.view_policy = match options.view_policy {
             ViewPolicy::Entropy => pb::ViewPolicy::Entropy,
             ViewPolicy::All => pb::ViewPolicy::All,
@@ -923,6 +924,7 @@ pub fn plan_options(setting: &Setting, seed: u64, gripper: &GripperModel) -> Pla
             other => other,
         },
         keep_views: false,
+        view_cascade: true,
     }
 }
 

@@ -260,6 +260,8 @@ pub fn label_frame(
         keep_views: true,
         max_grasps: 1,
         min_quality: 1.0,
+        // Only the views are wanted here (the stand-in network infers nothing).
+        view_cascade: false,
         ..PlanOptions::default()
     };
     let contract = planner.contract().clone();

@@ -180,8 +180,33 @@ async fn policies_thresholds_and_debug_views() {
             .map(|o| o.views.iter().filter(|v| v.inferred).count())
             .sum()
     };
-    let entropy = client.plan(base.clone()).await.unwrap();
+    let entropy = client
+        .plan(pb::PlanGraspsRequest {
+            view_cascade: Some(false),
+            ..base.clone()
+        })
+        .await
+        .unwrap();
     assert_eq!(inferred(&entropy), 6, "one view per object");
+    // With the view cascade (the default) an object without a grasp goes on
+    // to its next view: each object ends with a grasp or every view tried
+    // (room for every object's grasps: max_grasps cuts the ranked list).
+    let cascaded = client
+        .plan(pb::PlanGraspsRequest {
+            max_grasps: 50,
+            ..base.clone()
+        })
+        .await
+        .unwrap();
+    assert!(inferred(&cascaded) >= 6);
+    for o in &cascaded.objects {
+        let views = o.views.iter().filter(|v| v.inferred).count();
+        assert!(
+            views == 3 || cascaded.grasps.iter().any(|g| g.object_id == o.id),
+            "object {}: {views} views and no grasp",
+            o.id
+        );
+    }
     let all = client
         .plan(pb::PlanGraspsRequest {
             view_policy: pb::ViewPolicy::All as i32,
@@ -234,7 +259,11 @@ async fn policies_thresholds_and_debug_views() {
         .unwrap();
     assert_eq!(debug.debug_views.len(), 18);
     let with_maps = debug.debug_views.iter().filter(|v| !v.maps.is_empty()).count();
-    assert_eq!(with_maps, 6);
+    assert_eq!(
+        with_maps,
+        inferred(&debug),
+        "maps for every view inferred, cascade rounds included"
+    );
     for v in &debug.debug_views {
         let n = (v.size_px * v.size_px) as usize;
         assert_eq!(v.image.len(), 4 * n);

@@ -190,3 +190,37 @@ fn check_golden(file: &str, golden: &str) {
         .fold((f32::MAX, f32::MIN), |(a, b), &x| (a.min(x), b.max(x)));
     assert!(hi - lo > 0.1, "{file}: quality spans only {lo}..{hi}");
 }
+
+/// The shipped default on the committed sample frame (6 objects), default
+/// request: with the view cascade every object gets a grasp; with the
+/// paper's single pass (`view_cascade: false`) three of them get none.
+#[tokio::test]
+async fn the_default_request_gives_every_sample_object_a_grasp() {
+    let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut settings = settings(BackendKind::Onnx);
+    settings.model.path = repo.join("models/mvgrasp-physics-labels.onnx");
+    let (server, mut client) = crate::fixture::start(settings).await;
+    let scene = mvgrasp_client::scene::SceneFiles::load_depth(
+        &repo.join("samples/table6/depth.png"),
+        &repo.join("samples/table6/camera.json"),
+    )
+    .expect("sample frame");
+    let objects_with_grasps = |response: &mvgrasp_client::pb::PlanGraspsResponse| {
+        let mut ids: Vec<u32> = response.grasps.iter().map(|g| g.object_id).collect();
+        ids.sort_unstable();
+        ids.dedup();
+        ids
+    };
+    let cascaded = client.plan(scene.request()).await.expect("plan");
+    assert_eq!(cascaded.objects.len(), 6);
+    assert_eq!(objects_with_grasps(&cascaded), [0, 1, 2, 3, 4, 5]);
+    let single_pass = client
+        .plan(mvgrasp_client::pb::PlanGraspsRequest {
+            view_cascade: Some(false),
+            ..scene.request()
+        })
+        .await
+        .expect("plan");
+    assert!(objects_with_grasps(&single_pass).len() < 6);
+    server.shutdown().await.unwrap();
+}
