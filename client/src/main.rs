@@ -77,6 +77,10 @@ struct SceneArgs {
     /// to its next view when the chosen one gives no grasp (the ablation).
     #[arg(long)]
     no_view_cascade: bool,
+    /// Only approaches within this cone: axis x y z (world) and half-angle
+    /// in degrees, e.g. `0 0 -1 60` for "from above within 60 degrees".
+    #[arg(long, num_args = 4, allow_negative_numbers = true, value_names = ["AX", "AY", "AZ", "HALF_DEG"])]
+    approach_cone: Option<Vec<f64>>,
 }
 
 impl SceneArgs {
@@ -107,6 +111,14 @@ impl SceneArgs {
             view_policy: policy as i32,
             random_seed: self.seed,
             view_cascade: self.no_view_cascade.then_some(false),
+            approach_cone: self.approach_cone.as_ref().map(|c| pb::ApproachCone {
+                axis: Some(pb::Vector3 {
+                    x: c[0],
+                    y: c[1],
+                    z: c[2],
+                }),
+                half_angle_rad: c[3].to_radians(),
+            }),
             ..scene.request()
         }
     }

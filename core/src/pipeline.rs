@@ -55,6 +55,46 @@ pub struct PlanOptions {
     /// does or its views run out ([`Planner::finish_or_cascade`]). Off: the
     /// paper's one pass over the policy's views.
     pub view_cascade: bool,
+    /// Only grasps approaching within this cone are planned (the robot's
+    /// reachable approaches); `None`: any.
+    pub approach_cone: Option<ApproachCone>,
+}
+
+/// A cone of approach directions (world frame).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ApproachCone {
+    /// The cone's axis (unit).
+    pub axis: Vector3<f64>,
+    /// Half its opening angle (rad), in (0, pi].
+    pub half_angle_rad: f64,
+}
+
+impl ApproachCone {
+    /// A cone around `axis` (any length > 0), checked.
+    pub fn new(axis: Vector3<f64>, half_angle_rad: f64) -> Result<Self> {
+        let norm = axis.norm();
+        if !(norm.is_finite() && norm > 1e-9) {
+            return Err(Error::invalid(
+                "approach_cone.axis",
+                format!("must be finite and non-zero, got {axis:?}"),
+            ));
+        }
+        if !(half_angle_rad.is_finite() && half_angle_rad > 0.0 && half_angle_rad <= std::f64::consts::PI) {
+            return Err(Error::invalid(
+                "approach_cone.half_angle_rad",
+                format!("must be in (0, pi], got {half_angle_rad}"),
+            ));
+        }
+        Ok(Self {
+            axis: axis / norm,
+            half_angle_rad,
+        })
+    }
+
+    /// True when `approach` (unit) lies within the cone.
+    pub fn allows(&self, approach: &Vector3<f64>) -> bool {
+        approach.dot(&self.axis) >= self.half_angle_rad.cos() - 1e-12
+    }
 }
 
 impl Default for PlanOptions {
@@ -66,6 +106,7 @@ impl Default for PlanOptions {
             view_policy: ViewPolicy::Entropy,
             keep_views: false,
             view_cascade: true,
+            approach_cone: None,
         }
     }
 }
@@ -230,6 +271,9 @@ pub struct Plan {
     /// Grasps at the end of `grasps` because their pads reach past the
     /// image border ([`HandConfig::out_of_view_last`]).
     pub ranked_last_out_of_view: usize,
+    /// Grasps dropped before ranking because their approach lay outside
+    /// [`PlanOptions::approach_cone`].
+    pub outside_approach_cone: usize,
     /// Grasps turned about their approach axis to square them to the
     /// surfaces their pads meet ([`HandConfig::square_turn_deg`]), among
     /// those checked.
@@ -287,6 +331,7 @@ struct Vetted {
     ranked: Ranked<RankedLast>,
     refusals: Refusals,
     turned_square: usize,
+    outside_approach_cone: usize,
 }
 
 impl Prepared {
@@ -622,6 +667,12 @@ impl Planner {
                 &self.config.decode,
             ));
         }
+        // Approaches the robot cannot take: dropped before anything else.
+        let decoded = grasps.len();
+        if let Some(cone) = &options.approach_cone {
+            grasps.retain(|g| cone.allows(&approach_of(g)));
+        }
+        let outside_approach_cone = decoded - grasps.len();
         let obstacles: Vec<Obstacle<'_>> = objects
             .iter()
             .map(|o| Obstacle {
@@ -787,6 +838,7 @@ impl Planner {
             ranked,
             refusals,
             turned_square,
+            outside_approach_cone,
         }
     }
 
@@ -806,6 +858,7 @@ impl Planner {
             ranked,
             refusals,
             turned_square,
+            outside_approach_cone,
         } = self.decode_and_rank(
             &prepared,
             &inferred,
@@ -845,6 +898,7 @@ impl Planner {
             refusals,
             ranked_after_turned_away: count(RankedLast::TurnedAway),
             ranked_last_out_of_view: count(RankedLast::OutOfView),
+            outside_approach_cone,
             turned_square,
             objects: objects.into_iter().map(|o| o.object).collect(),
             table,

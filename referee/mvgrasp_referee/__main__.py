@@ -31,6 +31,8 @@ def parse(argv):
                    "(default: the server's; entropy, all, top-down, random)")
     p.add_argument("--min-quality", type=float, default=None, help="tau asked of the planner (default: the server's)")
     p.add_argument("--max-grasps", type=int, default=10)
+    p.add_argument("--approach-cone", default=None, metavar="AX,AY,AZ,HALF_DEG",
+                   help="ask for approaches within this cone only, e.g. 0,0,-1,60 (from above within 60 degrees)")
     p.add_argument("--no-view-cascade", action="store_true",
                    help="ask for the paper's single pass over the policy's views (the ablation)")
     p.add_argument("--oracle", action="store_true",
@@ -77,7 +79,7 @@ def _init(args):
     _worker["bridge"] = bridge.Bridge(args.bridge, gripper.tcp_in_flange(probe))
     _worker["planner"] = planner.OraclePlanner() if args.oracle else planner.Planner(
         args.server, args.policy, args.min_quality, args.max_grasps,
-        view_cascade=False if args.no_view_cascade else None)
+        view_cascade=False if args.no_view_cascade else None, approach_cone=args.approach_cone)
     _worker["args"] = args
     _worker["renderers"] = {}
 
@@ -129,7 +131,8 @@ def main(argv=None):
                   f"{time.perf_counter() - start:.0f} s", end="", file=sys.stderr, flush=True)
     print(file=sys.stderr)
     meta = {**info, "suite": args.suite, "policy": args.policy, "min_quality": args.min_quality,
-            "max_grasps": args.max_grasps, "view_cascade": not args.no_view_cascade, "seed": args.seed,
+            "max_grasps": args.max_grasps, "view_cascade": not args.no_view_cascade,
+            "approach_cone": args.approach_cone, "seed": args.seed,
             "resolution": args.resolution, "noise": args.noise,
             "oracle": args.oracle, "workers": args.workers, "wall_s": time.perf_counter() - start,
             "command": "scripts/referee.sh " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))}

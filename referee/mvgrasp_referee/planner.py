@@ -27,7 +27,7 @@ class Planner:
     """A gRPC connection to the service, and the request options of a setting."""
 
     def __init__(self, address, policy="default", min_quality=None, max_grasps=10, timeout_s=30.0,
-                 view_cascade=None):
+                 view_cascade=None, approach_cone=None):
         import grpc  # noqa: PLC0415
 
         if policy not in POLICIES:
@@ -38,6 +38,12 @@ class Planner:
         self.policy, self.min_quality, self.max_grasps = policy, min_quality, max_grasps
         self.timeout_s = timeout_s
         self.view_cascade = view_cascade
+        self.approach_cone = None
+        if approach_cone is not None:
+            values = [float(v) for v in str(approach_cone).split(",")]
+            if len(values) != 4:
+                raise ValueError(f"--approach-cone {approach_cone!r}: give AX,AY,AZ,HALF_DEG")
+            self.approach_cone = values
 
     def model_info(self):
         info = self.stub.GetModelInfo(self.pb.GetModelInfoRequest(), timeout=self.timeout_s)
@@ -57,6 +63,10 @@ class Planner:
             options["view_policy"] = POLICIES[self.policy]
         if self.view_cascade is not None:
             options["view_cascade"] = self.view_cascade
+        if self.approach_cone is not None:
+            ax, ay, az, half_deg = self.approach_cone
+            options["approach_cone"] = pb.ApproachCone(axis=pb.Vector3(x=ax, y=ay, z=az),
+                                                       half_angle_rad=np.radians(half_deg))
         (x0, y0, z0), (x1, y1, z1) = WORKSPACE
         request = pb.PlanGraspsRequest(
             depth=pb.DepthImage(width=pose.width, height=pose.height, encoding=pb.DEPTH_ENCODING_FLOAT32_M,

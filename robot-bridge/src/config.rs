@@ -89,6 +89,19 @@ pub struct PlannerSection {
     pub endpoint: Option<String>,
     /// Deadline of one planning call (s).
     pub timeout_s: f64,
+    /// Only approaches within this cone are asked of the planner (what this
+    /// cell's arm can execute); unset: any.
+    pub approach_cone: Option<ConeConfig>,
+}
+
+/// A cone of approach directions: `axis` (world) and its half-angle.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConeConfig {
+    /// Axis x, y, z (world; any length > 0).
+    pub axis: [f64; 3],
+    /// Half the opening angle (degrees, in (0, 180]).
+    pub half_angle_deg: f64,
 }
 
 /// Recovery the bridge may do by itself through the dashboard (29999).
@@ -154,6 +167,7 @@ impl Default for BridgeConfig {
             planner: PlannerSection {
                 endpoint: None,
                 timeout_s: 5.0,
+                approach_cone: None,
             },
             recovery: RecoverySection {
                 unlock_protective_stop: false,
@@ -228,6 +242,7 @@ impl BridgeConfig {
                 return Err(bad(field, format!("{value} is not in (0, {max}]")));
             }
         }
+        self.approach_cone()?;
         let wait = self.recovery.unlock_after_s;
         if !(wait.is_finite() && (0.0..=60.0).contains(&wait)) {
             return Err(bad(
@@ -270,6 +285,17 @@ impl BridgeConfig {
         })
     }
 
+    /// `planner.approach_cone` as the planner's cone, checked.
+    pub fn approach_cone(&self) -> Result<Option<mvgrasp_core::ApproachCone>> {
+        self.planner
+            .approach_cone
+            .map(|c| {
+                mvgrasp_core::ApproachCone::new(Vector3::from(c.axis), c.half_angle_deg.to_radians())
+                    .map_err(|e| bad("planner.approach_cone", e.to_string()))
+            })
+            .transpose()
+    }
+
     /// The basket as an obstacle.
     pub fn basket(&self) -> BoxObstacle {
         let b = &self.pick.basket;
@@ -303,9 +329,29 @@ mod tests {
                 "pick.world_from_drop",
             ),
             ("[recovery]\nunlock_after_s = -1.0\n", "recovery.unlock_after_s"),
+            (
+                "[planner]\napproach_cone = { axis = [0.0, 0.0, 0.0], half_angle_deg = 60.0 }\n",
+                "planner.approach_cone",
+            ),
+            (
+                "[planner]\napproach_cone = { axis = [0.0, 0.0, -1.0], half_angle_deg = 0.0 }\n",
+                "planner.approach_cone",
+            ),
         ] {
             let err = BridgeConfig::from_toml(text).unwrap_err().to_string();
             assert!(err.contains(key), "{key}: {err}");
         }
+    }
+
+    #[test]
+    fn the_approach_cone_is_read_in_degrees() {
+        let config = BridgeConfig::from_toml(
+            "[planner]\napproach_cone = { axis = [0.0, 0.0, -2.0], half_angle_deg = 60.0 }\n",
+        )
+        .unwrap();
+        let cone = config.approach_cone().unwrap().unwrap();
+        assert!((cone.axis - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-12);
+        assert!((cone.half_angle_rad - 60f64.to_radians()).abs() < 1e-12);
+        assert_eq!(BridgeConfig::default().approach_cone().unwrap(), None);
     }
 }

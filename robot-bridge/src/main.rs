@@ -276,9 +276,10 @@ fn pick(
             endpoint,
             &scene,
             max_grasps,
+            settings.approach_cone()?,
             Duration::from_secs_f64(settings.planner.timeout_s),
         )?,
-        None => plan_locally(&scene, max_grasps)?,
+        None => plan_locally(&scene, max_grasps, settings.approach_cone()?)?,
     };
     println!(
         "planner {}: {} objects, {} grasps",

@@ -13,8 +13,8 @@ use std::{path::Path, time::Duration};
 
 use mvgrasp_client::{PlannerClient, pb};
 use mvgrasp_core::{
-    DepthEncoding, DepthFrame, GraspNet, Intrinsics, MomentsNet, PlanOptions, Planner, PlannerConfig,
-    SceneInput, SensorInput, Workspace, pose_from_parts,
+    ApproachCone, DepthEncoding, DepthFrame, GraspNet, Intrinsics, MomentsNet, PlanOptions, Planner,
+    PlannerConfig, SceneInput, SensorInput, Workspace, pose_from_parts,
 };
 use nalgebra::{Isometry3, Point3, Quaternion, Rotation3, Translation3, UnitQuaternion, Vector3};
 
@@ -206,7 +206,11 @@ fn obstacles(
 pub const MIN_QUALITY: f32 = 0.5;
 
 /// Plans on `scene` with `mvgrasp-core` and the analytic baseline network.
-pub fn plan_locally(scene: &SceneFiles, max_grasps: usize) -> Result<PlannedScene> {
+pub fn plan_locally(
+    scene: &SceneFiles,
+    max_grasps: usize,
+    approach_cone: Option<ApproachCone>,
+) -> Result<PlannedScene> {
     let mut net = MomentsNet::default();
     let planner = Planner::new(PlannerConfig::default(), net.contract().clone())
         .map_err(|e| Error::Controller(e.to_string()))?;
@@ -224,6 +228,7 @@ pub fn plan_locally(scene: &SceneFiles, max_grasps: usize) -> Result<PlannedScen
     let options = PlanOptions {
         max_grasps,
         min_quality: MIN_QUALITY,
+        approach_cone,
         ..PlanOptions::default()
     };
     let plan = planner
@@ -284,6 +289,7 @@ pub fn plan_remotely(
     endpoint: &str,
     scene: &SceneFiles,
     max_grasps: usize,
+    approach_cone: Option<ApproachCone>,
     timeout: Duration,
 ) -> Result<PlannedScene> {
     let runtime = tokio::runtime::Builder::new_current_thread()
@@ -293,6 +299,14 @@ pub fn plan_remotely(
     let request = pb::PlanGraspsRequest {
         max_grasps: max_grasps as u32,
         min_quality: Some(MIN_QUALITY),
+        approach_cone: approach_cone.map(|c| pb::ApproachCone {
+            axis: Some(pb::Vector3 {
+                x: c.axis.x,
+                y: c.axis.y,
+                z: c.axis.z,
+            }),
+            half_angle_rad: c.half_angle_rad,
+        }),
         ..scene.request.clone()
     };
     let (response, info) = runtime.block_on(async {

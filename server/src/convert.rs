@@ -2,9 +2,9 @@
 //! edge where every field is validated and named in errors.
 
 use mvgrasp_core::{
-    Channel, CloudFrame, DebugView, DepthEncoding, DepthFrame, DetectedObject, Grasp, Gripper, Intrinsics,
-    ModelContract, Plan, PlanOptions, PointCloud, SceneInput, SensorInput, StageTimings, TablePlane,
-    ViewAxis, ViewPolicy, Workspace, pose_from_parts,
+    ApproachCone, Channel, CloudFrame, DebugView, DepthEncoding, DepthFrame, DetectedObject, Grasp, Gripper,
+    Intrinsics, ModelContract, Plan, PlanOptions, PointCloud, SceneInput, SensorInput, StageTimings,
+    TablePlane, ViewAxis, ViewPolicy, Workspace, pose_from_parts,
 };
 use mvgrasp_proto::v1 as pb;
 use nalgebra::{Isometry3, Vector3};
@@ -172,6 +172,18 @@ pub fn options_of(request: &pb::PlanGraspsRequest, defaults: &RequestDefaults) -
         view_policy,
         keep_views: request.include_debug_views,
         view_cascade: request.view_cascade.unwrap_or(true),
+        approach_cone: match &request.approach_cone {
+            None => None,
+            Some(cone) => {
+                let axis = cone
+                    .axis
+                    .ok_or_else(|| Error::invalid("approach_cone.axis", "missing"))?;
+                Some(ApproachCone::new(
+                    Vector3::new(axis.x, axis.y, axis.z),
+                    cone.half_angle_rad,
+                )?)
+            }
+        },
     };
     options.validate()?;
     Ok(options)
@@ -304,6 +316,7 @@ pub fn response_of(
         request_id: request_id.to_owned(),
         ranked_last_out_of_view: plan.ranked_last_out_of_view as u32,
         ranked_after_turned_away: plan.ranked_after_turned_away as u32,
+        outside_approach_cone: plan.outside_approach_cone as u32,
     }
 }
 

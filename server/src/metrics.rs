@@ -45,6 +45,8 @@ pub struct Metrics {
     /// Grasps returned after those as planned because they were turned
     /// about their approach away from a neighbour the hand would have hit.
     pub grasps_turned_away: IntCounter,
+    /// Grasps dropped because their approach lay outside the request's cone.
+    pub grasps_outside_approach_cone: IntCounter,
     /// Queued work dropped before inference, by reason.
     pub dropped: IntCounterVec,
     /// 1, labelled with the loaded model and backend.
@@ -119,6 +121,11 @@ impl Metrics {
                 "Grasps returned after those as planned, turned about their approach away from a neighbour",
             )
             .map_err(metric_error)?,
+            grasps_outside_approach_cone: IntCounter::new(
+                "grasps_outside_approach_cone_total",
+                "Grasps dropped before ranking because their approach lay outside the request's approach cone",
+            )
+            .map_err(metric_error)?,
             dropped: IntCounterVec::new(
                 Opts::new("dropped_views_total", "Queued views dropped before inference"),
                 &["reason"],
@@ -131,7 +138,7 @@ impl Metrics {
             .map_err(metric_error)?,
             registry,
         };
-        let collectors: [Box<dyn prometheus::core::Collector>; 15] = [
+        let collectors: [Box<dyn prometheus::core::Collector>; 16] = [
             Box::new(m.requests.clone()),
             Box::new(m.request_seconds.clone()),
             Box::new(m.stage_seconds.clone()),
@@ -145,6 +152,7 @@ impl Metrics {
             Box::new(m.grasps_out_of_view.clone()),
             Box::new(m.grasps_turned_square.clone()),
             Box::new(m.grasps_turned_away.clone()),
+            Box::new(m.grasps_outside_approach_cone.clone()),
             Box::new(m.dropped.clone()),
             Box::new(m.model_info.clone()),
         ];

@@ -188,6 +188,9 @@ impl PlannerState {
         self.metrics
             .grasps_turned_away
             .inc_by(plan.ranked_after_turned_away as u64);
+        self.metrics
+            .grasps_outside_approach_cone
+            .inc_by(plan.outside_approach_cone as u64);
     }
 
     fn observe_call(&self, method: &str, started: Instant, code: Code) {

@@ -227,6 +227,47 @@ fn cases() -> Vec<(&'static str, Code, &'static str, Edit)> {
             Box::new(|r| r.view_policy = 42),
         ),
         (
+            "approach cone without an axis",
+            Code::InvalidArgument,
+            "approach_cone.axis",
+            Box::new(|r| {
+                r.approach_cone = Some(pb::ApproachCone {
+                    axis: None,
+                    half_angle_rad: 1.0,
+                })
+            }),
+        ),
+        (
+            "approach cone with a zero axis",
+            Code::InvalidArgument,
+            "approach_cone.axis",
+            Box::new(|r| {
+                r.approach_cone = Some(pb::ApproachCone {
+                    axis: Some(pb::Vector3 {
+                        x: 0.0,
+                        y: 0.0,
+                        z: 0.0,
+                    }),
+                    half_angle_rad: 1.0,
+                })
+            }),
+        ),
+        (
+            "approach cone of no angle",
+            Code::InvalidArgument,
+            "approach_cone.half_angle_rad",
+            Box::new(|r| {
+                r.approach_cone = Some(pb::ApproachCone {
+                    axis: Some(pb::Vector3 {
+                        x: 0.0,
+                        y: 0.0,
+                        z: -1.0,
+                    }),
+                    half_angle_rad: f64::NAN,
+                })
+            }),
+        ),
+        (
             "too many pixels",
             Code::ResourceExhausted,
             "depth",

@@ -291,6 +291,51 @@ fn the_view_cascade_tries_the_next_view() {
     }
 }
 
+/// An approach cone keeps only the grasps within it (the rest are counted),
+/// and the view cascade then finds each object a grasp from the views that
+/// approach within the cone.
+#[test]
+fn an_approach_cone_keeps_only_the_approaches_within_it() {
+    let scene = grid_scene(0.1, 5, 5, 0.12);
+    let camera = Camera::orbit(Vector3::new(0.0, 0.0, 0.1), 0.8, 50.0, -90.0);
+    let every = PlanOptions {
+        view_policy: ViewPolicy::All,
+        max_grasps: 50,
+        min_quality: 0.1,
+        ..PlanOptions::default()
+    };
+    let (free, _) = plan_rendered(&scene, &camera, &every);
+    assert_eq!(free.outside_approach_cone, 0);
+    let from_above =
+        mvgrasp_core::ApproachCone::new(Vector3::new(0.0, 0.0, -2.0), 30f64.to_radians()).unwrap();
+    for policy in [ViewPolicy::All, ViewPolicy::Entropy] {
+        let options = PlanOptions {
+            view_policy: policy,
+            approach_cone: Some(from_above),
+            ..every.clone()
+        };
+        let (plan, _) = plan_rendered(&scene, &camera, &options);
+        assert!(plan.outside_approach_cone > 0, "{policy:?}");
+        for g in &plan.grasps {
+            assert!(
+                approach_of(g).z <= -(30f64.to_radians().cos()) + 1e-9,
+                "{policy:?}"
+            );
+        }
+        for object in &plan.objects {
+            assert!(
+                plan.grasps.iter().any(|g| g.object_id == object.id),
+                "{policy:?}: object {} has no grasp from above",
+                object.id
+            );
+        }
+    }
+    assert!(mvgrasp_core::ApproachCone::new(Vector3::zeros(), 1.0).is_err());
+    assert!(mvgrasp_core::ApproachCone::new(Vector3::z(), 0.0).is_err());
+    assert!(mvgrasp_core::ApproachCone::new(Vector3::z(), 3.2).is_err());
+    assert!(mvgrasp_core::ApproachCone::new(Vector3::z(), std::f64::consts::PI).is_ok());
+}
+
 /// Planning the same frame twice gives the same answer (bit for bit).
 #[test]
 fn deterministic() {

@@ -300,13 +300,28 @@ mod from_files {
             .join(file)
     }
 
+    /// With the cell's approach cone the planner offers only approaches
+    /// within it (here: from above within 20 degrees).
+    #[test]
+    fn the_planner_is_asked_for_the_cells_approaches_only() {
+        let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
+        let cone =
+            mvgrasp_core::ApproachCone::new(Vector3::new(0.0, 0.0, -1.0), 20f64.to_radians()).expect("cone");
+        let planned = plan_locally(&scene, 50, Some(cone)).expect("planned");
+        assert!(!planned.grasps.is_empty());
+        for g in &planned.grasps {
+            let approach = g.world_from_grasp.rotation * Vector3::z();
+            assert!(approach.z <= -(20f64.to_radians().cos()) + 1e-9, "{approach:?}");
+        }
+    }
+
     /// The committed sample frame -> in-process planner -> collision-checked
     /// pick -> run on the emulator: the object is placed.
     #[test]
     fn the_sample_scene_is_picked_end_to_end() {
         let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
         assert_eq!((scene.width, scene.height), (640, 480));
-        let planned = plan_locally(&scene, 10).expect("planned");
+        let planned = plan_locally(&scene, 10, None).expect("planned");
         assert_eq!(planned.objects.len(), 6);
         assert!(!planned.grasps.is_empty());
         // The documented defaults (base, drop pose, basket obstacle), faster for the test.
@@ -369,8 +384,9 @@ mod from_files {
         settings.model.backend = mvgrasp_server::BackendKind::Baseline;
         let server = runtime.block_on(mvgrasp_server::start(settings)).expect("server");
         let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
-        let local = plan_locally(&scene, 10).expect("local");
-        let remote = plan_remotely(&format!("http://{}", server.addr), &scene, 10, TIMEOUT).expect("remote");
+        let local = plan_locally(&scene, 10, None).expect("local");
+        let remote =
+            plan_remotely(&format!("http://{}", server.addr), &scene, 10, None, TIMEOUT).expect("remote");
         assert!(remote.planner.contains("baseline-moments"), "{}", remote.planner);
         assert_eq!(remote.grasps.len(), local.grasps.len());
         assert!(!remote.grasps.is_empty());
@@ -402,7 +418,7 @@ mod from_files {
             .port();
         let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
         let endpoint = format!("http://127.0.0.1:{port}");
-        let err = plan_remotely(&endpoint, &scene, 10, TIMEOUT).expect_err("nothing listens there");
+        let err = plan_remotely(&endpoint, &scene, 10, None, TIMEOUT).expect_err("nothing listens there");
         assert!(
             matches!(err, Error::Io(_)) && err.to_string().contains(&endpoint),
             "{err}"
