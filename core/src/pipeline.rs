@@ -335,16 +335,19 @@ struct Vetted {
 }
 
 impl Prepared {
-    /// The maps of earlier cascade rounds followed by `maps`.
-    fn rounds_so_far(&self, maps: &GraspMaps) -> GraspMaps {
+    /// The `(object, view)` entries and maps of earlier cascade rounds,
+    /// followed by this round's (`maps`).
+    fn rounds_so_far(&self, maps: &GraspMaps) -> (Vec<(usize, usize)>, GraspMaps) {
+        let entries = self.earlier.iter().chain(&self.inferred).copied().collect();
         let mut data = Vec::with_capacity(self.earlier_maps.len() + maps.data.len());
         data.extend_from_slice(&self.earlier_maps);
         data.extend_from_slice(&maps.data);
-        GraspMaps {
+        let all = GraspMaps {
             size_px: maps.size_px,
             len: self.earlier.len() + maps.len,
             data,
-        }
+        };
+        (entries, all)
     }
 }
 
@@ -581,13 +584,7 @@ impl Planner {
         maps.check_matches(&prepared.batch)?;
         if prepared.options.view_cascade && prepared.untried.iter().any(|u| !u.is_empty()) {
             let start = Instant::now();
-            let all = prepared.rounds_so_far(maps);
-            let entries: Vec<(usize, usize)> = prepared
-                .earlier
-                .iter()
-                .chain(&prepared.inferred)
-                .copied()
-                .collect();
+            let (entries, all) = prepared.rounds_so_far(maps);
             let covered = self.objects_with_grasps(&prepared, &entries, &all);
             let mut batch = ViewBatch::new(prepared.batch.size_px);
             let mut next = Vec::new();
@@ -847,13 +844,7 @@ impl Planner {
     pub fn finish(&self, prepared: Prepared, maps: &GraspMaps) -> Result<Plan> {
         maps.check_matches(&prepared.batch)?;
         let start = Instant::now();
-        let maps = prepared.rounds_so_far(maps);
-        let inferred: Vec<(usize, usize)> = prepared
-            .earlier
-            .iter()
-            .chain(&prepared.inferred)
-            .copied()
-            .collect();
+        let (inferred, maps) = prepared.rounds_so_far(maps);
         let Vetted {
             ranked,
             refusals,
