@@ -114,6 +114,12 @@ def plan_request(pb, depth_png, camera_json, **options):
     return request
 
 
+def approach_cone(pb, axis, half_angle_deg):
+    """An ApproachCone: approaches within `half_angle_deg` of `axis` (world)."""
+    return pb.ApproachCone(axis=pb.Vector3(x=axis[0], y=axis[1], z=axis[2]),
+                           half_angle_rad=math.radians(half_angle_deg))
+
+
 def approach(q):
     """The grasp frame's +z (approach) in the world, from its quaternion."""
     x, y, z, w = q.x, q.y, q.z, q.w
@@ -127,6 +133,10 @@ def main():
     parser.add_argument("--camera", required=True)
     parser.add_argument("--max-grasps", type=int, default=0)
     parser.add_argument("--timeout-s", type=float, default=10.0)
+    parser.add_argument("--approach-cone", type=float, nargs=4, metavar=("AX", "AY", "AZ", "HALF_DEG"),
+                        help="only approaches within this cone, e.g. 0 0 -1 60 (from above within 60 degrees)")
+    parser.add_argument("--no-view-cascade", action="store_true",
+                        help="the paper's single pass over the policy's views")
     args = parser.parse_args()
 
     import grpc  # noqa: PLC0415
@@ -136,9 +146,15 @@ def main():
         planner = rpc.GraspPlannerStub(channel)
         info = planner.GetModelInfo(pb.GetModelInfoRequest(), timeout=args.timeout_s)
         print(f"model {info.model_version} on {info.backend}, views {info.input_size_px} px")
-        request = plan_request(pb, args.depth, args.camera, max_grasps=args.max_grasps)
+        options = {"max_grasps": args.max_grasps}
+        if args.approach_cone:
+            options["approach_cone"] = approach_cone(pb, args.approach_cone[:3], args.approach_cone[3])
+        if args.no_view_cascade:
+            options["view_cascade"] = False
+        request = plan_request(pb, args.depth, args.camera, **options)
         response = planner.PlanGrasps(request, timeout=args.timeout_s)
-    print(f"{len(response.objects)} objects, {len(response.grasps)} grasps, "
+    print(f"{len(response.objects)} objects, {len(response.grasps)} grasps "
+          f"({response.outside_approach_cone} outside the approach cone), "
           f"{response.timings.total_ms:.1f} ms in the server")
     for rank, g in enumerate(response.grasps, 1):
         p, a = g.pose.position, approach(g.pose.orientation)

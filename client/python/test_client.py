@@ -77,6 +77,16 @@ def main():
         check("widths within the 2F-140", all(0 < g.width_m <= 0.14 for g in response.grasps))
         check("request id echoed", response.request_id == "python-1")
 
+        # Only approaches from above within 30 degrees; the rest are counted.
+        coned = mvgrasp_client.plan_request(
+            pb, os.path.join(ROOT, "samples/table6/depth.png"), os.path.join(ROOT, "samples/table6/camera.json"),
+            max_grasps=20, approach_cone=mvgrasp_client.approach_cone(pb, (0, 0, -1), 30))
+        coned_response = planner.PlanGrasps(coned, timeout=30)
+        check("approaches within the cone",
+              all(mvgrasp_client.approach(g.pose.orientation)[2] <= -math.cos(math.radians(30)) + 1e-9
+                  for g in coned_response.grasps),
+              str([mvgrasp_client.approach(g.pose.orientation) for g in coned_response.grasps]))
+
         bad = mvgrasp_client.plan_request(
             pb, os.path.join(ROOT, "samples/table6/depth.png"), os.path.join(ROOT, "samples/table6/camera.json"))
         bad.depth.intrinsics.fx = 0
