@@ -89,16 +89,16 @@ def _run(job):
 
     scenario, pool, cam, episode = job
     args = _worker["args"]
-    take = None
-    if args.snapshots > 0:
-        def take(cell, pose, depth, entry, record):
-            marker = os.path.join(args.out, "failures")
-            if os.path.isdir(marker) and len(os.listdir(marker)) >= args.snapshots:
-                return None
-            return report.snapshot(args.out, cell, pose, depth, entry, record, _worker["renderers"])
+
+    def take(cell, pose, depth, entry, record):
+        folder = os.path.join(args.out, "failures")
+        if os.path.isdir(folder) and len(os.listdir(folder)) >= args.snapshots:
+            return None
+        return report.snapshot(args.out, cell, pose, depth, entry, record, _worker["renderers"])
+
     start = time.perf_counter()
     record = protocol.run_episode(_worker["planner"], _worker["bridge"], scenario, pool, cam, args.seed, episode,
-                                  args.resolution, args.noise, take)
+                                  args.resolution, args.noise, take if args.snapshots > 0 else None)
     record["wall_s"] = round(time.perf_counter() - start, 2)
     return record
 

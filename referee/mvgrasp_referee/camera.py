@@ -121,11 +121,10 @@ class DepthCamera:
         self.renderer.close()
 
 
-def add_noise(depth, rng, distance_m):
+def add_noise(depth, rng):
     """Kinect-like noise: axial sigma 1.2 mm + 1.9 mm x (z - 0.4 m)^2, a
     missing reading at 1% of pixels and along 30% of depth edges > 2 cm,
     then 1 mm quantisation."""
-    del distance_m
     z = depth.copy()
     valid = z > 0
     sigma = 0.0012 + 0.0019 * (z - 0.4) ** 2

@@ -150,10 +150,9 @@ def held_objects(cell):
     return touching[0] & touching[1]
 
 
-def execute(cell, plan_steps, target, gap_table, tcp_in_flange):
+def execute(cell, plan_steps, target, gap_table):
     """Runs the bridge's steps for a grasp of object `target` (index or None)
     and returns (outcome, details)."""
-    del tcp_in_flange
     run = Run(cell, target)
     start_z = {i: cell.object_pose(i)[0][2] for i in range(len(cell.bodies))}
     closed = False

@@ -10,8 +10,6 @@ clear, after the scenario's consecutive failures, when the planner offers
 no grasp or the arm can reach none of them, or after 2 x objects + 4 attempts.
 """
 
-import time
-
 import mujoco
 import numpy as np
 
@@ -56,7 +54,6 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
     pose = cammod.sample_pose(camera_kind, rng, resolution)
     cam = cammod.DepthCamera(cell.model, pose.width, pose.height)
     table = gripper.gap_table(cell)
-    tcp = gripper.tcp_in_flange(cell)
     allowed_failures = scenes.SCENARIOS[scenario][1]
     initial = [i for i in range(len(specs)) if scenes.on_table(cell, i)]
     record = {"scenario": scenario, "pool": pool, "camera": camera_kind, "seed": seed, "episode": episode,
@@ -74,7 +71,7 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                 break
             depth = cam.depth(cell.model, cell.data, pose)
             if noise:
-                depth = cammod.add_noise(depth, rng, 0.0)
+                depth = cammod.add_noise(depth, rng)
             if getattr(planner, "ground_truth", False):
                 plan = planner.plan_truth(cell, remaining)
             else:
@@ -106,7 +103,7 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                 grasp = grasps[chosen]
                 target = target_of(cell, grasp, remaining)
                 state = snapshot(cell)
-                outcome, details = executor.execute(cell, answer["steps"], target, table, tcp)
+                outcome, details = executor.execute(cell, answer["steps"], target, table)
                 if outcome == "unreachable-sim":
                     entry["unreachable"] += 1
                     entry["refused"].append("simulated arm touched " + "; ".join(details["collisions"][:2]))
@@ -147,8 +144,3 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
     record["lost"] = sum(1 for i in initial if i not in removed and not scenes.on_table(cell, i))
     return record
 
-
-def timed(fn, *args, **kwargs):
-    start = time.perf_counter()
-    out = fn(*args, **kwargs)
-    return out, time.perf_counter() - start
