@@ -62,8 +62,8 @@ pub use gripper::Gripper;
 pub use infer::{Channel, GraspMaps, GraspNet, ModelContract, MomentsNet, ViewBatch};
 pub use object::ObjectFrame;
 pub use pipeline::{
-    ApproachCone, DebugView, DetectedObject, Finished, Plan, PlanOptions, Planner, PlannerConfig, Prepared,
-    Refusals, SceneInput, Segmentation, StageTimings, ViewReport, approach_of,
+    ApproachCone, DebugView, DetectedObject, Finished, ObjectRefusals, Plan, PlanOptions, Planner,
+    PlannerConfig, Prepared, Refusals, SceneInput, Segmentation, StageTimings, ViewReport, approach_of,
 };
 pub use segment::{ClusterConfig, CreaseConfig, Reattach, TableConfig, TablePlane};
 pub use select::ViewPolicy;

@@ -218,6 +218,23 @@ pub struct DetectedObject {
     pub frame: ObjectFrame,
     /// Its views.
     pub views: Vec<ViewReport>,
+    /// Its candidate grasps lost to the hand check or the approach cone,
+    /// by cause (among those checked: ranking stops checking once the
+    /// answer is full). An object without a grasp says why here.
+    pub refused: ObjectRefusals,
+}
+
+/// One object's candidate grasps lost, by cause.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ObjectRefusals {
+    /// The hand would hit the table.
+    pub table: usize,
+    /// The hand would hit another object.
+    pub neighbour: usize,
+    /// The hand would hit the object's own points (no opening re-fit passed).
+    pub own_points: usize,
+    /// The approach lay outside [`PlanOptions::approach_cone`].
+    pub outside_approach_cone: usize,
 }
 
 /// A rendered view with its maps, when [`PlanOptions::keep_views`] is set.
@@ -332,6 +349,7 @@ struct Vetted {
     refusals: Refusals,
     turned_square: usize,
     outside_approach_cone: usize,
+    per_object: Vec<ObjectRefusals>,
 }
 
 impl Prepared {
@@ -551,6 +569,7 @@ impl Planner {
                     id,
                     frame,
                     views: reports,
+                    refused: ObjectRefusals::default(),
                 },
                 views,
                 points,
@@ -666,8 +685,16 @@ impl Planner {
         }
         // Approaches the robot cannot take: dropped before anything else.
         let decoded = grasps.len();
+        let mut per_object = vec![ObjectRefusals::default(); objects.len()];
+        let index_of = |id: u32| objects.iter().position(|o| o.object.id == id);
         if let Some(cone) = &options.approach_cone {
-            grasps.retain(|g| cone.allows(&approach_of(g)));
+            grasps.retain(|g| {
+                let within = cone.allows(&approach_of(g));
+                if let (false, Some(i)) = (within, index_of(g.object_id)) {
+                    per_object[i].outside_approach_cone += 1;
+                }
+                within
+            });
         }
         let outside_approach_cone = decoded - grasps.len();
         let obstacles: Vec<Obstacle<'_>> = objects
@@ -695,10 +722,24 @@ impl Planner {
                     hand_collision(pose, width, &options.gripper, hand, table, &obstacles, own)
                 };
                 let mut refuse = |c: Collision| {
+                    let mut spare = ObjectRefusals::default();
+                    let mine = match own {
+                        Some(i) => &mut per_object[i],
+                        None => &mut spare,
+                    };
                     match c {
-                        Collision::Table => refusals.table += 1,
-                        Collision::Object(i) if Some(i) == own => refusals.own_object += 1,
-                        Collision::Object(_) => refusals.neighbour += 1,
+                        Collision::Table => {
+                            refusals.table += 1;
+                            mine.table += 1;
+                        }
+                        Collision::Object(i) if Some(i) == own => {
+                            refusals.own_object += 1;
+                            mine.own_points += 1;
+                        }
+                        Collision::Object(_) => {
+                            refusals.neighbour += 1;
+                            mine.neighbour += 1;
+                        }
                     }
                     Verdict::Refuse
                 };
@@ -836,6 +877,7 @@ impl Planner {
             refusals,
             turned_square,
             outside_approach_cone,
+            per_object,
         }
     }
 
@@ -850,6 +892,7 @@ impl Planner {
             refusals,
             turned_square,
             outside_approach_cone,
+            per_object,
         } = self.decode_and_rank(
             &prepared,
             &inferred,
@@ -891,7 +934,11 @@ impl Planner {
             ranked_last_out_of_view: count(RankedLast::OutOfView),
             outside_approach_cone,
             turned_square,
-            objects: objects.into_iter().map(|o| o.object).collect(),
+            objects: objects
+                .into_iter()
+                .zip(per_object)
+                .map(|(o, refused)| DetectedObject { refused, ..o.object })
+                .collect(),
             table,
             timings,
             debug_views,

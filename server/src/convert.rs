@@ -255,6 +255,12 @@ fn object_message(o: &DetectedObject) -> pb::DetectedObject {
                 inferred: v.inferred,
             })
             .collect(),
+        refused: Some(pb::ObjectRefusals {
+            table: o.refused.table as u32,
+            neighbour: o.refused.neighbour as u32,
+            own_points: o.refused.own_points as u32,
+            outside_approach_cone: o.refused.outside_approach_cone as u32,
+        }),
     }
 }
 

@@ -222,5 +222,31 @@ async fn the_default_request_gives_every_sample_object_a_grasp() {
         .await
         .expect("plan");
     assert!(objects_with_grasps(&single_pass).len() < 6);
+    // Approaches from below only: no grasp at all, and each object says why.
+    let from_below = client
+        .plan(mvgrasp_client::pb::PlanGraspsRequest {
+            approach_cone: Some(mvgrasp_client::pb::ApproachCone {
+                axis: Some(mvgrasp_client::pb::Vector3 {
+                    x: 0.0,
+                    y: 0.0,
+                    z: 1.0,
+                }),
+                half_angle_rad: 0.2,
+            }),
+            ..scene.request()
+        })
+        .await
+        .expect("plan");
+    assert!(from_below.grasps.is_empty());
+    assert!(from_below.outside_approach_cone > 0);
+    for o in &from_below.objects {
+        let refused = o.refused.expect("per-object refusals");
+        assert!(refused.outside_approach_cone > 0, "object {}: {refused:?}", o.id);
+        assert!(
+            o.views.iter().all(|v| v.inferred),
+            "object {}: every view tried",
+            o.id
+        );
+    }
     server.shutdown().await.unwrap();
 }

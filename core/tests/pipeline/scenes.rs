@@ -316,6 +316,16 @@ fn an_approach_cone_keeps_only_the_approaches_within_it() {
         };
         let (plan, _) = plan_rendered(&scene, &camera, &options);
         assert!(plan.outside_approach_cone > 0, "{policy:?}");
+        // Each object accounts for its own losses; they add up to the plan's.
+        let sum = |f: fn(&mvgrasp_core::ObjectRefusals) -> usize| -> usize {
+            plan.objects.iter().map(|o| f(&o.refused)).sum()
+        };
+        assert_eq!(sum(|r| r.outside_approach_cone), plan.outside_approach_cone);
+        assert_eq!(
+            sum(|r| r.table + r.neighbour + r.own_points),
+            plan.refused_for_collision
+        );
+        assert_eq!(sum(|r| r.table), plan.refusals.table);
         for g in &plan.grasps {
             assert!(
                 approach_of(g).z <= -(30f64.to_radians().cos()) + 1e-9,
