@@ -346,9 +346,8 @@ pub struct Prepared {
 /// The hand check's and the ranking's answer over the views inferred so far.
 struct Vetted {
     ranked: Ranked<RankedLast>,
-    refusals: Refusals,
     turned_square: usize,
-    outside_approach_cone: usize,
+    /// What each object's candidates were lost to; the plan's totals are their sums.
     per_object: Vec<ObjectRefusals>,
 }
 
@@ -684,7 +683,6 @@ impl Planner {
             ));
         }
         // Approaches the robot cannot take: dropped before anything else.
-        let decoded = grasps.len();
         let mut per_object = vec![ObjectRefusals::default(); objects.len()];
         let index_of = |id: u32| objects.iter().position(|o| o.object.id == id);
         if let Some(cone) = &options.approach_cone {
@@ -696,7 +694,6 @@ impl Planner {
                 within
             });
         }
-        let outside_approach_cone = decoded - grasps.len();
         let obstacles: Vec<Obstacle<'_>> = objects
             .iter()
             .map(|o| Obstacle {
@@ -706,7 +703,6 @@ impl Planner {
                 points: &o.points,
             })
             .collect();
-        let mut refusals = Refusals::default();
         let mut turned_square = 0;
         let ranked = rank_grasps_vetted(
             grasps,
@@ -717,29 +713,17 @@ impl Planner {
             },
             |g| {
                 let hand = &self.config.hand;
-                let own = objects.iter().position(|o| o.object.id == g.object_id);
+                let own = index_of(g.object_id);
                 let hit = |pose: &Isometry3<f64>, width: f64| {
                     hand_collision(pose, width, &options.gripper, hand, table, &obstacles, own)
                 };
                 let mut refuse = |c: Collision| {
-                    let mut spare = ObjectRefusals::default();
-                    let mine = match own {
-                        Some(i) => &mut per_object[i],
-                        None => &mut spare,
-                    };
+                    let mut unknown = ObjectRefusals::default();
+                    let mine = own.map_or(&mut unknown, |i| &mut per_object[i]);
                     match c {
-                        Collision::Table => {
-                            refusals.table += 1;
-                            mine.table += 1;
-                        }
-                        Collision::Object(i) if Some(i) == own => {
-                            refusals.own_object += 1;
-                            mine.own_points += 1;
-                        }
-                        Collision::Object(_) => {
-                            refusals.neighbour += 1;
-                            mine.neighbour += 1;
-                        }
+                        Collision::Table => mine.table += 1,
+                        Collision::Object(i) if Some(i) == own => mine.own_points += 1,
+                        Collision::Object(_) => mine.neighbour += 1,
                     }
                     Verdict::Refuse
                 };
@@ -874,9 +858,7 @@ impl Planner {
         );
         Vetted {
             ranked,
-            refusals,
             turned_square,
-            outside_approach_cone,
             per_object,
         }
     }
@@ -889,9 +871,7 @@ impl Planner {
         let (inferred, maps) = prepared.rounds_so_far(maps);
         let Vetted {
             ranked,
-            refusals,
             turned_square,
-            outside_approach_cone,
             per_object,
         } = self.decode_and_rank(
             &prepared,
@@ -908,6 +888,13 @@ impl Planner {
             ..
         } = prepared;
         let count = |why: RankedLast| ranked.deferred.iter().filter(|&&d| d == why).count();
+        let total = |f: fn(&ObjectRefusals) -> usize| per_object.iter().map(f).sum::<usize>();
+        let refusals = Refusals {
+            table: total(|r| r.table),
+            own_object: total(|r| r.own_points),
+            neighbour: total(|r| r.neighbour),
+        };
+        let outside_approach_cone = total(|r| r.outside_approach_cone);
         let mut debug_views = Vec::new();
         if options.keep_views {
             let per_view = 4 * maps.size_px * maps.size_px;
