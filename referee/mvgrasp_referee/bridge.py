@@ -79,11 +79,11 @@ class Bridge:
         t[:3, 3] = answer["position"]
         return t
 
-    def plan(self, grasps, boxes, table, current):
+    def plan(self, grasps, scene, current):
         """The bridge's pick for ranked `grasps` (dicts with position,
-        orientation xyzw, width_m, quality, object), or its refusals."""
-        answer = self.ask({"plan": {"grasps": grasps, "objects": boxes, "table": table,
-                                    "current": [float(v) for v in current]}})
+        orientation xyzw, width_m, quality, object) among the obstacles of
+        `scene` (planner.bridge_scene), or its refusals."""
+        answer = self.ask({"plan": {"grasps": grasps, "scene": scene, "current": [float(v) for v in current]}})
         if not answer["ok"]:
             raise RuntimeError(answer["error"])
         return answer

@@ -104,39 +104,14 @@ class Planner:
         self.channel.close()
 
 
-def _rotate(q_xyzw, v):
-    x, y, z, w = q_xyzw
-    r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-    return r @ np.asarray(v, float)
-
-
-def obstacles(plan):
-    """The detected objects as boxes and the table as a slab, as the
-    robot-bridge builds them from a planner's answer (robot-bridge/src/planner.rs)."""
-    boxes = []
-    for o in plan["objects"]:
-        lo, hi = np.array(o["extent_min_m"]), np.array(o["extent_max_m"])
-        centre = np.array(o["position"]) + _rotate(o["orientation"], (lo + hi) / 2)
-        boxes.append({"name": f"object {o['id']}", "position": centre.tolist(), "orientation": o["orientation"],
-                      "half_extents_m": ((hi - lo) / 2).tolist()})
-    n = np.array(plan["table"]["normal"], float)
-    if np.linalg.norm(n) < 0.5 or abs(n[2]) < 1e-6:
-        return boxes, None
-    (x0, y0, _), (x1, y1, _) = WORKSPACE
-    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
-    surface = np.array([cx, cy, -(plan["table"]["offset_m"] + n[0] * cx + n[1] * cy) / n[2]])
-    axis = np.cross([0.0, 0.0, 1.0], n)
-    angle = np.arctan2(np.linalg.norm(axis), n[2])
-    if np.linalg.norm(axis) > 1e-9:
-        axis = axis / np.linalg.norm(axis) * np.sin(angle / 2)
-        q = [axis[0], axis[1], axis[2], np.cos(angle / 2)]
-    else:
-        q = [0.0, 0.0, 0.0, 1.0]
-    table = {"name": "table", "position": (surface - 0.025 * n).tolist(), "orientation": q,
-             "half_extents_m": [(x1 - x0) / 2 + 0.3, (y1 - y0) / 2 + 0.3, 0.025]}
-    return boxes, table
+def bridge_scene(plan):
+    """The planner's answer as the robot-bridge turns it into obstacles
+    (`plan-jsonl`'s `scene`: detected objects, table plane, workspace)."""
+    (x0, y0, z0), (x1, y1, z1) = WORKSPACE
+    return {"detected": [{k: o[k] for k in ("id", "position", "orientation", "extent_min_m", "extent_max_m")}
+                         for o in plan["objects"]],
+            "table_plane": plan["table"],
+            "workspace": {"min": [x0, y0, z0], "max": [x1, y1, z1]}}
 
 
 class OraclePlanner:

@@ -15,7 +15,7 @@ import numpy as np
 
 from . import camera as cammod
 from . import executor, gripper, scenes
-from .planner import obstacles
+from .planner import bridge_scene
 
 MAX_GRASPS_TRIED = 10
 
@@ -84,7 +84,7 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                 record["attempts"].append(entry)
                 record["end"] = "no-grasp"
                 break
-            boxes, table_box = obstacles(plan)
+            obstacles = bridge_scene(plan)
             grasps = plan["grasps"][:MAX_GRASPS_TRIED]
             outcome, details = None, {}
             start = 0
@@ -92,7 +92,7 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                 index_of = {o["id"]: k for k, o in enumerate(plan["objects"])}
                 asked = [{"position": g["position"], "orientation": g["orientation"], "width_m": g["width_m"],
                           "quality": g["quality"], "object": index_of.get(g["object"])} for g in grasps[start:]]
-                answer = bridge.plan(asked, boxes, table_box, cell.arm_q())
+                answer = bridge.plan(asked, obstacles, cell.arm_q())
                 if answer["grasp_index"] is None:
                     entry["unreachable"] += len(grasps) - start
                     entry["refused"] += [r["reason"] for r in answer["refused"]][:3]

@@ -9,11 +9,14 @@
 //!
 //! - `{"fk": [q1..q6]}` -> `{"ok": true, "position": [x, y, z], "orientation": [x, y, z, w]}`,
 //!   `base_from_flange`;
-//! - `{"plan": {"grasps": [...], "objects": [...], "table": {...}, "current": [q1..q6]}}`
+//! - `{"plan": {"grasps": [...], "scene": {...}, "current": [q1..q6]}}`
 //!   -> `{"ok": true, "grasp_index": k, "steps": [...], "refused": [...]}`. Each
 //!   grasp is `{"position", "orientation", "width_m", "quality", "object"}` in
-//!   the world (mvgrasp grasp frame), each box `{"name", "position",
-//!   "orientation", "half_extents_m"}`. A `movel` step carries its joint
+//!   the world (mvgrasp grasp frame); the optional `scene` is the planner's
+//!   answer, `{"detected": [{"id", "position", "orientation", "extent_min_m",
+//!   "extent_max_m"}], "table_plane": {"normal", "offset_m"}, "workspace":
+//!   {"min", "max"}}`, turned into obstacles exactly as `pick` turns a
+//!   planner's answer into them. A `movel` step carries its joint
 //!   samples every centimetre (`path`), so the straight line is the one the
 //!   bridge checked. `refused` says, for each better-ranked grasp that was
 //!   skipped, why.
@@ -22,12 +25,14 @@
 
 use std::io::{BufRead, Write};
 
+use mvgrasp_core::Workspace;
 use nalgebra::{Isometry3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::collision::BoxObstacle;
 use crate::error::{Error, Result};
-use crate::pick::{GraspTarget, PickConfig, Step, linear_path, plan_pick};
+use crate::pick::{GraspTarget, PickConfig, Step, plan_pick};
+use crate::planner::{ObjectBox, obstacles};
 use crate::ur5e::{Joints, Ur5e};
 
 /// One request line.
@@ -46,10 +51,42 @@ enum Request {
 #[serde(deny_unknown_fields)]
 struct PlanRequest {
     grasps: Vec<GraspJson>,
-    #[serde(default)]
-    objects: Vec<BoxJson>,
-    table: Option<BoxJson>,
+    scene: Option<SceneJson>,
     current: Joints,
+}
+
+/// The planner's answer as obstacles come from it: the detected objects,
+/// the table plane and the request's workspace (`planner::obstacles`).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneJson {
+    detected: Vec<DetectedJson>,
+    table_plane: PlaneJson,
+    workspace: WorkspaceJson,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DetectedJson {
+    id: u32,
+    position: [f64; 3],
+    orientation: [f64; 4],
+    extent_min_m: [f64; 3],
+    extent_max_m: [f64; 3],
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlaneJson {
+    normal: [f64; 3],
+    offset_m: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WorkspaceJson {
+    min: [f64; 3],
+    max: [f64; 3],
 }
 
 #[derive(Debug, Deserialize)]
@@ -61,15 +98,6 @@ struct GraspJson {
     #[serde(default)]
     quality: f32,
     object: Option<usize>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct BoxJson {
-    name: String,
-    position: [f64; 3],
-    orientation: [f64; 4],
-    half_extents_m: [f64; 3],
 }
 
 #[derive(Debug, Serialize)]
@@ -98,19 +126,33 @@ fn pose(field: &'static str, position: [f64; 3], orientation: [f64; 4]) -> Resul
     })
 }
 
-fn obstacle(b: &BoxJson) -> Result<BoxObstacle> {
-    let half = Vector3::from(b.half_extents_m);
-    if half.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
-        return Err(Error::InvalidInput {
-            field: "half_extents_m",
-            reason: format!("{half:?}"),
-        });
-    }
-    Ok(BoxObstacle {
-        name: b.name.clone(),
-        world_from_box: pose("box pose", b.position, b.orientation)?,
-        half_extents_m: half,
-    })
+/// The detected objects as boxes and the table as a slab, as `pick` builds
+/// them from a planner's answer.
+fn scene_obstacles(scene: &SceneJson) -> Result<(Vec<BoxObstacle>, BoxObstacle)> {
+    let detected = scene
+        .detected
+        .iter()
+        .map(|o| {
+            Ok(ObjectBox {
+                id: o.id,
+                world_from_object: pose("detected object pose", o.position, o.orientation)?,
+                extent_min_m: Vector3::from(o.extent_min_m),
+                extent_max_m: Vector3::from(o.extent_max_m),
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let w = &scene.workspace;
+    let workspace = Workspace::new(w.min, w.max).map_err(|e| Error::InvalidInput {
+        field: "scene.workspace",
+        reason: e.to_string(),
+    })?;
+    let p = &scene.table_plane;
+    Ok(obstacles(
+        &detected,
+        Vector3::from(p.normal),
+        p.offset_m,
+        &workspace,
+    ))
 }
 
 /// The answer to one request line, as a JSON value.
@@ -141,17 +183,21 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                     })
                 })
                 .collect::<Result<Vec<_>>>()?;
-            let scene = plan.objects.iter().map(obstacle).collect::<Result<Vec<_>>>()?;
             let mut config = config.clone();
-            if let Some(table) = &plan.table {
-                config.obstacles.push(obstacle(table)?);
-            }
+            let scene = match &plan.scene {
+                Some(scene) => {
+                    let (objects, table) = scene_obstacles(scene)?;
+                    config.obstacles.push(table);
+                    objects
+                }
+                None => Vec::new(),
+            };
             // The first feasible grasp, and why each better-ranked one was refused.
             let mut refused = Vec::new();
             for (index, grasp) in grasps.iter().enumerate() {
                 match plan_pick(arm, &config, std::slice::from_ref(grasp), &scene, &plan.current) {
                     Ok(pick) => {
-                        let steps = steps_json(arm, &config, &pick.steps, &plan.current)?;
+                        let steps = steps_json(&pick.steps);
                         return Ok(serde_json::json!({
                             "ok": true,
                             "grasp_index": index,
@@ -175,40 +221,28 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
     }
 }
 
-fn steps_json(arm: &Ur5e, config: &PickConfig, steps: &[Step], current: &Joints) -> Result<Vec<StepJson>> {
-    let mut at = *current;
-    let mut out = Vec::with_capacity(steps.len());
-    for step in steps {
-        out.push(match step {
-            Step::MoveJ { name, joints } => {
-                at = *joints;
-                StepJson::Movej {
-                    name,
-                    joints: *joints,
-                }
-            }
-            Step::MoveL {
+fn steps_json(steps: &[Step]) -> Vec<StepJson> {
+    steps
+        .iter()
+        .map(|step| match step {
+            Step::MoveJ { name, joints } => StepJson::Movej {
                 name,
-                base_from_tcp,
-                joints,
-            } => {
-                let from = arm.forward(&at) * config.flange_from_tcp;
-                let path = linear_path(arm, config, &from, base_from_tcp, &at)?;
-                at = *joints;
-                StepJson::Movel {
-                    name,
-                    joints: *joints,
-                    path,
-                }
-            }
+                joints: *joints,
+            },
+            Step::MoveL {
+                name, joints, path, ..
+            } => StepJson::Movel {
+                name,
+                joints: *joints,
+                path: path.clone(),
+            },
             Step::Gripper { name, close, width_m } => StepJson::Gripper {
                 name,
                 close: *close,
                 width_m: *width_m,
             },
-        });
-    }
-    Ok(out)
+        })
+        .collect()
 }
 
 /// Answers request lines from `input` on `output` until `input` ends.

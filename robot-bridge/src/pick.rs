@@ -114,6 +114,9 @@ pub enum Step {
         base_from_tcp: Isometry3<f64>,
         /// The joints at the target.
         joints: Joints,
+        /// The joints every centimetre along the line as planned and
+        /// checked, ending at `joints`.
+        path: Vec<Joints>,
     },
     /// Close the gripper (expecting an object) or open it to `width_m`.
     Gripper {
@@ -268,29 +271,29 @@ fn plan_one(
         let Ok(q_pre) = arm.inverse_nearest(&flange_for(&pre), current) else {
             continue;
         };
-        let q_grasp = match last(linear(
+        let (q_grasp, approach_path) = match linear(
             arm,
             config,
             world,
             &flange_for(&pre),
             &flange_for(&world_from_tcp),
             &q_pre,
-        )) {
-            Ok(q) => q,
+        ) {
+            Ok(line) => line,
             Err(e) => {
                 reason = format!("approach: {e}");
                 continue;
             }
         };
-        let q_lift = match last(linear(
+        let (q_lift, lift_path) = match linear(
             arm,
             config,
             world,
             &flange_for(&world_from_tcp),
             &flange_for(&lift),
             &q_grasp,
-        )) {
-            Ok(q) => q,
+        ) {
+            Ok(line) => line,
             Err(e) => {
                 reason = format!("lift: {e}");
                 continue;
@@ -341,6 +344,7 @@ fn plan_one(
             name: "approach",
             base_from_tcp: base_from_world * world_from_tcp,
             joints: q_grasp,
+            path: approach_path,
         });
         steps.push(Step::Gripper {
             name: "close",
@@ -351,6 +355,7 @@ fn plan_one(
             name: "lift",
             base_from_tcp: base_from_world * lift,
             joints: q_lift,
+            path: lift_path,
         });
         steps.extend(via(&to_drop, "over the basket"));
         steps.push(Step::Gripper {
@@ -372,42 +377,11 @@ fn plan_one(
     })
 }
 
-/// The joints that run the TCP in a straight line from `base_from_tcp_start`
-/// to `base_from_tcp_end` (robot base frame), one sample per centimetre and
-/// the end, starting at joints `start`: what a `movel` of a plan passes
-/// through. Obstacles are not checked here (`plan_pick` did that); a sample
-/// out of reach or a joint jump over `max_joint_step` is an error.
-pub fn linear_path(
-    arm: &Ur5e,
-    config: &PickConfig,
-    base_from_tcp_start: &Isometry3<f64>,
-    base_from_tcp_end: &Isometry3<f64>,
-    start: &Joints,
-) -> Result<Vec<Joints>> {
-    let tcp_from_flange = config.flange_from_tcp.inverse();
-    let free = CollisionWorld::new(Isometry3::identity(), &[], config.arm_model.clone());
-    linear(
-        arm,
-        config,
-        &free,
-        &(base_from_tcp_start * tcp_from_flange),
-        &(base_from_tcp_end * tcp_from_flange),
-        start,
-    )
-}
-
-fn last(path: Result<Vec<Joints>>) -> Result<Joints> {
-    path.and_then(|p| {
-        p.last()
-            .copied()
-            .ok_or_else(|| Error::Unreachable("an empty linear move".to_owned()))
-    })
-}
-
 /// Solves a straight flange line from `from` to `to` at 1 cm steps starting
-/// at joints `start` and returns the samples after the start; fails if a
-/// sample is unreachable, collides, or a joint jumps by more than
-/// `max_joint_step` (a flip through a singularity).
+/// at joints `start` and returns the joints at `to` and the samples after
+/// the start (ending with them); fails if a sample is unreachable, collides,
+/// or a joint jumps by more than `max_joint_step` (a flip through a
+/// singularity).
 fn linear(
     arm: &Ur5e,
     config: &PickConfig,
@@ -415,7 +389,7 @@ fn linear(
     from: &Isometry3<f64>,
     to: &Isometry3<f64>,
     start: &Joints,
-) -> Result<Vec<Joints>> {
+) -> Result<(Joints, Vec<Joints>)> {
     let distance = (to.translation.vector - from.translation.vector).norm();
     let samples = ((distance / 0.01).ceil() as usize).max(1);
     let mut q = *start;
@@ -440,7 +414,7 @@ fn linear(
         }
         q = next;
     }
-    Ok(path)
+    Ok((q, path))
 }
 
 /// The arm's part of a pick as a URScript program (gripper steps become

@@ -155,15 +155,15 @@ pub struct PlannedScene {
 }
 
 /// A detected object as the planner reports it.
-struct ObjectBox {
-    id: u32,
-    world_from_object: Isometry3<f64>,
-    extent_min_m: Vector3<f64>,
-    extent_max_m: Vector3<f64>,
+pub(crate) struct ObjectBox {
+    pub(crate) id: u32,
+    pub(crate) world_from_object: Isometry3<f64>,
+    pub(crate) extent_min_m: Vector3<f64>,
+    pub(crate) extent_max_m: Vector3<f64>,
 }
 
 /// Obstacles from detected objects and the table plane `normal . p + offset_m = 0`.
-fn obstacles(
+pub(crate) fn obstacles(
     objects: &[ObjectBox],
     normal: Vector3<f64>,
     offset_m: f64,
