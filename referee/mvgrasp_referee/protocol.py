@@ -135,9 +135,6 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                 failures += 1
         else:
             record["end"] = "attempts"
-        if record["end"] is None:
-            record["end"] = "clear" if not [i for i in initial if i not in removed and scenes.on_table(cell, i)] \
-                else "failures"
     finally:
         cam.close()
     record["removed"] = len(removed)
