@@ -35,6 +35,8 @@ def parse(argv):
                    help="ask for approaches within this cone only, e.g. 0,0,-1,60 (from above within 60 degrees)")
     p.add_argument("--no-view-cascade", action="store_true",
                    help="ask for the paper's single pass over the policy's views (the ablation)")
+    p.add_argument("--rigid-tcp", action="store_true",
+                   help="configure the robot-bridge without the 2F-140's fingertip travel (the ablation)")
     p.add_argument("--oracle", action="store_true",
                    help="ground-truth grasps instead of the planner (the executor's self-check)")
     p.add_argument("--seed", type=int, default=2026)
@@ -76,7 +78,8 @@ def _init(args):
     from . import bridge, cell, gripper, planner  # noqa: PLC0415
 
     probe = cell.build([], [])
-    _worker["bridge"] = bridge.Bridge(args.bridge, gripper.tcp_in_flange(probe))
+    travel = [] if args.rigid_tcp else gripper.fingertip_travel(probe)
+    _worker["bridge"] = bridge.Bridge(args.bridge, gripper.tcp_in_flange(probe), travel)
     _worker["planner"] = planner.OraclePlanner() if args.oracle else planner.Planner(
         args.server, args.policy, args.min_quality, args.max_grasps,
         view_cascade=False if args.no_view_cascade else None, approach_cone=args.approach_cone)

@@ -26,8 +26,9 @@ def quat_xyzw(rotation):
     return [q[1], q[2], q[3], q[0]]
 
 
-def config_toml(tcp_in_flange):
-    """The bridge's settings for this cell (robot-bridge/bridge.toml's keys)."""
+def config_toml(tcp_in_flange, fingertip_travel=()):
+    """The bridge's settings for this cell (robot-bridge/bridge.toml's keys);
+    `fingertip_travel` as `gripper.fingertip_travel` gives it (empty: a rigid TCP)."""
     position, yaw = cellmod.WORLD_FROM_BASE
     base_q = [0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)]
     # Fingers close along the flange's y: the TCP's x (closing) is the flange's y.
@@ -37,6 +38,7 @@ def config_toml(tcp_in_flange):
     return f"""[robot]
 world_from_base = {{ position = [{fmt(f"{v:.6f}" for v in position)}], orientation = [{fmt(f"{v:.9f}" for v in base_q)}] }}
 flange_from_tcp = {{ position = [{fmt(f"{v:.6f}" for v in tcp_in_flange)}], orientation = [{fmt(f"{v:.9f}" for v in tcp_q)}] }}
+fingertip_travel = [{fmt(f"[{w}, {d}]" for w, d in fingertip_travel)}]
 
 [pick]
 world_from_drop = {{ position = [{bx:.4f}, {by:.4f}, {cellmod.DROP_HEIGHT_M:.4f}], orientation = [1.0, 0.0, 0.0, 0.0] }}
@@ -47,11 +49,11 @@ basket = {{ centre = [{bx:.4f}, {by:.4f}, {bz:.4f}], half_extents_m = [{hx:.4f},
 class Bridge:
     """A running `robot-bridge plan-jsonl` process."""
 
-    def __init__(self, binary, tcp_in_flange):
+    def __init__(self, binary, tcp_in_flange, fingertip_travel=()):
         if not os.path.exists(binary):
             raise FileNotFoundError(f"{binary}: build it with `cargo build --release -p mvgrasp-robot-bridge`")
         self._config = tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False)
-        self._config.write(config_toml(tcp_in_flange))
+        self._config.write(config_toml(tcp_in_flange, fingertip_travel))
         self._config.close()
         self.process = subprocess.Popen([binary, "plan-jsonl", "--config", self._config.name],
                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)

@@ -72,6 +72,15 @@ def tcp_in_flange(cell, width_m=0.06):
     return mid
 
 
+def fingertip_travel(cell, reference_m=0.06, step_m=0.01):
+    """Where the fingertips are along the approach, relative to the TCP at an
+    opening of `reference_m`, at openings 0 to 14 cm (the robot-bridge's
+    `robot.fingertip_travel`): the linkage pulls them back as it opens."""
+    ref = tcp_in_flange(cell, reference_m)[2]
+    widths = np.arange(0.0, 0.14 + 1e-9, step_m)
+    return [[round(float(w), 3), round(float(tcp_in_flange(cell, w)[2] - ref), 5)] for w in widths]
+
+
 def command_for_width(table, width_m):
     angles, gaps = table
     return float(np.interp(width_m, gaps[::-1], angles[::-1]))

@@ -119,13 +119,15 @@ class OraclePlanner:
     each object, top-down through its centre of mass (which it knows),
     closing across the object's narrowest section there (the pads' 28 mm
     wide slab through the centre of mass, turned in 10-degree steps; the
-    footprint's minor axis if no section fits the hand), at the true width,
-    the fingertips 4 cm below the section's top but at least 12 mm above the
+    footprint's minor axis if no section fits the hand), at the true width
+    plus the planner's opening margin (`OPENING_MARGIN_M`, as the service
+    reports widths), the fingertips 4 cm below the section's top but at least 12 mm above the
     table (half the height of an object lower than 24 mm)."""
 
     ground_truth = True
     PAD_HALF_WIDTH_M = 0.014
     MAX_WIDTH_M = 0.13
+    OPENING_MARGIN_M = 0.02  # the service's decode.opening_margin_m
 
     def model_info(self):
         return {"model_version": "oracle (ground truth)", "backend": "referee"}
@@ -161,7 +163,7 @@ class OraclePlanner:
         y = np.cross(z, x)
         return {"position": [float(centre[0]), float(centre[1]), max(top - 0.04, min(0.012, top / 2))],
                 "orientation": quat_xyzw(np.stack([x, y, z], axis=1)),
-                "width_m": width, "quality": 1.0, "object": None, "view": "top"}
+                "width_m": width + self.OPENING_MARGIN_M, "quality": 1.0, "object": None, "view": "top"}
 
     def plan_truth(self, cell, remaining):
         return {"grasps": [self.grasp_for(cell, i) for i in remaining], "objects": [],

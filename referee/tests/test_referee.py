@@ -13,7 +13,8 @@ import unittest
 import mujoco
 import numpy as np
 
-from mvgrasp_referee import assets, bridge, camera, cell, gripper, objects, planner, pools, protocol, report, scenes
+from mvgrasp_referee import (assets, bridge, camera, cell, compare, gripper, objects, planner, pools, protocol, report,
+                             scenes)
 
 
 def bridge_binary():
@@ -59,6 +60,29 @@ class StatsTest(unittest.TestCase):
         r = rows[0]
         self.assertEqual((r["attempts"], r["successes"], r["removed"], r["initial"]), (2, 1, 1, 3))
         self.assertEqual((r["no_grasp"], r["unreachable"], r["failures"]["empty"]), (1, 5, 1))
+
+
+class CompareTest(unittest.TestCase):
+    @staticmethod
+    def run_of(removed):
+        return {"episodes": [{"scenario": "isolated", "pool": "train", "camera": "topdown", "episode": i,
+                              "initial": 1, "removed": r,
+                              "attempts": [{"outcome": "success" if r else "empty"}]}
+                             for i, r in enumerate(removed)]}
+
+    def test_paired_difference_and_its_interval(self):
+        base, new = self.run_of([1, 0, 0, 1, 0, 1]), self.run_of([1, 1, 1, 1, 0, 0])
+        text = compare.table(base, new)
+        self.assertIn("| isolated | 6 | 3 | 4 | +1 (", text)
+        self.assertIn("| 2 / 1 | 0.500 (3/6) | 0.667 (4/6) |", text)
+        lo, hi = compare.bootstrap([1, 1, -1, 0, 0, 0])
+        self.assertTrue(-6 < lo < 1 < hi < 6, (lo, hi))
+        self.assertEqual(compare.bootstrap([1, 1, -1, 0, 0, 0]), (lo, hi))
+        self.assertEqual(compare.bootstrap([2, 2, 2]), (6, 6))
+
+    def test_runs_of_other_episodes_are_refused(self):
+        with self.assertRaises(SystemExit):
+            compare.table(self.run_of([1, 0]), self.run_of([1]))
 
 
 class CellTest(unittest.TestCase):
@@ -117,6 +141,14 @@ class CellTest(unittest.TestCase):
         tcp = gripper.tcp_in_flange(self.cell)
         self.assertLess(np.linalg.norm(tcp[:2]), 1e-6)
         self.assertAlmostEqual(tcp[2], 0.227, delta=0.005)
+
+    def test_the_fingertips_pull_back_as_the_hand_opens(self):
+        travel = gripper.fingertip_travel(self.cell)
+        self.assertEqual([w for w, _ in travel][::7], [0.0, 0.07, 0.14])
+        self.assertEqual(dict(travel)[0.06], 0.0)
+        along = [d for _, d in travel]
+        self.assertTrue(all(a > b for a, b in zip(along, along[1:])), along)
+        self.assertAlmostEqual(along[0] - along[-1], 0.03, delta=0.005)
 
 
 class CameraTest(unittest.TestCase):

@@ -2,12 +2,12 @@
 //! joint-space RRT-Connect for joint moves whose straight line collides.
 //!
 //! The arm is a chain of capsules (parry) between consecutive DH frame
-//! origins, plus one for the gripper body; obstacles are boxes (the table,
-//! the basket, detected objects). DH origins of a UR arm sit on the joint
-//! axes, not on the link centrelines, so the capsules are generous
-//! (`ArmModel::margin_m` on top) rather than exact.
+//! origins, and the gripper a few boxes for its opening ([`HandModel`]);
+//! obstacles are boxes (the table, the basket, detected objects). DH origins
+//! of a UR arm sit on the joint axes, not on the link centrelines, so the
+//! capsules are generous (`ArmModel::margin_m` on top) rather than exact.
 
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Translation3, Vector3};
 use parry3d::math::{Pose, Rotation, Vector};
 use parry3d::query::intersection_test;
 use parry3d::shape::{Capsule, Cuboid};
@@ -31,11 +31,9 @@ pub struct BoxObstacle {
 pub struct ArmModel {
     /// Capsule radius between DH frames i and i+1 (i = 1..5; the base column is not checked).
     pub link_radius_m: [f64; 5],
-    /// Gripper body: from the flange this far along its z (m).
-    pub gripper_length_m: f64,
-    /// Gripper body radius (m).
-    pub gripper_radius_m: f64,
-    /// Added to every radius (m).
+    /// The gripper's solid parts.
+    pub hand: HandModel,
+    /// Added to every radius and every half size of the hand's boxes (m).
     pub margin_m: f64,
 }
 
@@ -43,10 +41,103 @@ impl Default for ArmModel {
     fn default() -> Self {
         Self {
             link_radius_m: [0.06, 0.05, 0.045, 0.045, 0.045],
-            gripper_length_m: 0.15,
-            gripper_radius_m: 0.06,
+            hand: HandModel::default(),
             margin_m: 0.01,
         }
+    }
+}
+
+/// A parallel-jaw gripper's solid parts as boxes, for a given opening, in
+/// the TCP frame (origin midway between the fingertips, +z the approach, +x
+/// the closing direction), measured back from the flange: the housing, the
+/// linkage (knuckles, outer fingers), and each finger from its lower
+/// knuckle to its tip, outside the pads. The space between the pads is not
+/// solid: what is there is what the grasp closes on, and the planner has
+/// vetted it against the points it saw.
+///
+/// The defaults are a Robotiq 2F-140: the collision meshes of the model the
+/// referee simulates (robosuite's, from Robotiq's CAD), bounded per part over
+/// the stroke (referee/README.md, "The hand in the robot-bridge").
+#[derive(Debug, Clone, PartialEq)]
+pub struct HandModel {
+    /// Housing: from the flange along the approach (m).
+    pub housing_length_m: f64,
+    /// Housing half sizes along the closing direction and across it (m).
+    pub housing_half_m: [f64; 2],
+    /// Linkage: from and to, measured from the flange along the approach (m).
+    pub linkage_from_flange_m: [f64; 2],
+    /// Linkage half size across the closing direction (m).
+    pub linkage_half_across_m: f64,
+    /// Linkage half size along the closing direction: half the opening plus
+    /// the finger's thickness, at least this (m).
+    pub linkage_min_half_closing_m: f64,
+    /// Fingers: from this far from the flange to the fingertips (m).
+    pub finger_from_flange_m: f64,
+    /// A finger's thickness outwards from its pad face (m).
+    pub finger_thickness_m: f64,
+    /// A finger's half width across the closing direction (m).
+    pub finger_half_across_m: f64,
+}
+
+impl Default for HandModel {
+    fn default() -> Self {
+        Self {
+            housing_length_m: 0.09,
+            housing_half_m: [0.042, 0.037],
+            linkage_from_flange_m: [0.041, 0.136],
+            linkage_half_across_m: 0.02,
+            linkage_min_half_closing_m: 0.07,
+            finger_from_flange_m: 0.118,
+            finger_thickness_m: 0.038,
+            finger_half_across_m: 0.015,
+        }
+    }
+}
+
+impl HandModel {
+    /// The boxes (centre, half sizes; TCP frame) for an opening `opening_m`
+    /// with the flange `flange_m` behind the fingertips, each grown by
+    /// `margin_m`, except past the fingertips: the planner keeps those its
+    /// own clearance above the table.
+    pub fn boxes(&self, opening_m: f64, flange_m: f64, margin_m: f64) -> Vec<(Vector3<f64>, Vector3<f64>)> {
+        let half_open = opening_m.max(0.0) / 2.0;
+        // A box `half_x` by `half_y` from `a` to `b` measured from the flange along the approach.
+        let block = |x: f64, half_x: f64, half_y: f64, a: f64, b: f64| {
+            let (a, b) = (a - margin_m, (b + margin_m).min(flange_m));
+            (
+                Vector3::new(x, 0.0, (a + b) / 2.0 - flange_m),
+                Vector3::new(half_x + margin_m, half_y + margin_m, (b - a) / 2.0),
+            )
+        };
+        let finger_x = half_open + self.finger_thickness_m / 2.0;
+        let [linkage_from, linkage_to] = self.linkage_from_flange_m;
+        let finger = |x: f64| {
+            block(
+                x,
+                self.finger_thickness_m / 2.0,
+                self.finger_half_across_m,
+                self.finger_from_flange_m,
+                flange_m,
+            )
+        };
+        vec![
+            block(
+                0.0,
+                self.housing_half_m[0],
+                self.housing_half_m[1],
+                0.0,
+                self.housing_length_m,
+            ),
+            block(
+                0.0,
+                (half_open + self.finger_thickness_m).max(self.linkage_min_half_closing_m),
+                self.linkage_half_across_m,
+                linkage_from,
+                linkage_to,
+            ),
+            finger(finger_x),
+            finger(-finger_x),
+        ]
     }
 }
 
@@ -56,6 +147,8 @@ pub struct CollisionWorld {
     world_from_base: Isometry3<f64>,
     obstacles: Vec<(Pose, Cuboid, String)>,
     model: ArmModel,
+    flange_from_tcp: Isometry3<f64>,
+    opening_m: f64,
 }
 
 fn vector(v: &Vector3<f64>) -> Vector {
@@ -87,14 +180,24 @@ impl CollisionWorld {
             world_from_base,
             obstacles,
             model,
+            flange_from_tcp: Isometry3::translation(0.0, 0.0, 0.233),
+            opening_m: 0.14,
         }
     }
 
-    /// The capsules of the arm at `q`, in the world.
-    fn capsules(&self, arm: &Ur5e, q: &Joints) -> Vec<Capsule> {
+    /// The same world with the gripper's TCP at `flange_from_tcp` and its
+    /// fingers `opening_m` apart (defaults: 0.233 m along the flange z, 0.14 m).
+    pub fn with_gripper(mut self, flange_from_tcp: Isometry3<f64>, opening_m: f64) -> Self {
+        self.flange_from_tcp = flange_from_tcp;
+        self.opening_m = opening_m;
+        self
+    }
+
+    /// The capsules of the arm's links at `q`, and the hand's boxes, in the world.
+    fn shapes(&self, arm: &Ur5e, q: &Joints) -> (Vec<Capsule>, Vec<(Pose, Cuboid)>) {
         let frames = arm.forward_frames(q).map(|f| self.world_from_base * f);
         let origin = |i: usize| frames[i].translation.vector;
-        let mut capsules: Vec<Capsule> = (1..6)
+        let capsules = (1..6)
             .map(|i| {
                 Capsule::new(
                     vector(&origin(i)),
@@ -103,29 +206,35 @@ impl CollisionWorld {
                 )
             })
             .collect();
-        let flange = frames[6];
-        let tip = flange * Point3::new(0.0, 0.0, self.model.gripper_length_m);
-        capsules.push(Capsule::new(
-            vector(&flange.translation.vector),
-            vector(&tip.coords),
-            (self.model.gripper_radius_m + self.model.margin_m) as f32,
-        ));
-        capsules
+        let world_from_tcp = frames[6] * self.flange_from_tcp;
+        let flange_m = self.flange_from_tcp.translation.vector.norm();
+        let boxes = self
+            .model
+            .hand
+            .boxes(self.opening_m, flange_m, self.model.margin_m)
+            .into_iter()
+            .map(|(centre, half)| {
+                let world_from_box = world_from_tcp * Translation3::from(centre);
+                (pose(&world_from_box), Cuboid::new(vector(&half)))
+            })
+            .collect();
+        (capsules, boxes)
     }
 
     /// The first obstacle the arm at `q` touches, if any.
     pub fn collision(&self, arm: &Ur5e, q: &Joints) -> Option<&str> {
-        let capsules = self.capsules(arm, q);
-        for (obstacle_pose, cuboid, name) in &self.obstacles {
-            for capsule in &capsules {
-                if intersection_test(&Pose::IDENTITY, capsule, obstacle_pose, cuboid)
-                    .map_or(true, |hit| hit.intersecting)
-                {
-                    return Some(name);
-                }
-            }
-        }
-        None
+        let (capsules, boxes) = self.shapes(arm, q);
+        // A shape parry cannot test counts as touching.
+        let hits = |obstacle_pose: &Pose, cuboid: &Cuboid| {
+            let touch = |pose: &Pose, shape: &dyn parry3d::shape::Shape| {
+                intersection_test(pose, shape, obstacle_pose, cuboid).map_or(true, |hit| hit.intersecting)
+            };
+            capsules.iter().any(|c| touch(&Pose::IDENTITY, c)) || boxes.iter().any(|(p, b)| touch(p, b))
+        };
+        self.obstacles
+            .iter()
+            .find(|(obstacle_pose, cuboid, _)| hits(obstacle_pose, cuboid))
+            .map(|(_, _, name)| name.as_str())
     }
 
     /// True when the straight joint-space segment is free, checked every `step_rad`.
@@ -269,6 +378,33 @@ mod tests {
         let mut down = HOME;
         down[1] = PI / 2.0;
         assert_eq!(world.collision(&arm, &down), Some("table"));
+    }
+
+    #[test]
+    fn the_hand_is_as_wide_as_its_opening_and_open_between_the_pads() {
+        let arm = Ur5e::default();
+        let flange_from_tcp = Isometry3::translation(0.0, 0.0, 0.233);
+        let world_from_tcp = arm.forward(&HOME) * flange_from_tcp;
+        // A 2 cm cube near the fingertips, `x` along the closing direction.
+        let cube = |x: f64, y: f64| BoxObstacle {
+            name: "cube".to_owned(),
+            world_from_box: world_from_tcp * Isometry3::translation(x, y, -0.02),
+            half_extents_m: Vector3::new(0.01, 0.01, 0.01),
+        };
+        let touches = |cube: BoxObstacle, opening_m: f64| {
+            CollisionWorld::new(Isometry3::identity(), &[cube], ArmModel::default())
+                .with_gripper(flange_from_tcp, opening_m)
+                .collision(&arm, &HOME)
+                .is_some()
+        };
+        // 9 cm out along the closing direction: a finger of the open hand, clear of a narrow one.
+        assert!(touches(cube(0.09, 0.0), 0.14));
+        assert!(!touches(cube(0.09, 0.0), 0.04));
+        // Between the pads: what the grasp closes on.
+        assert!(!touches(cube(0.0, 0.0), 0.08));
+        // 5 cm across the closing direction: beside the 3 cm wide fingers, then on one.
+        assert!(!touches(cube(0.06, 0.05), 0.10));
+        assert!(touches(cube(0.06, 0.0), 0.10));
     }
 
     #[test]

@@ -51,6 +51,10 @@ pub struct RobotSection {
     pub world_from_base: PoseConfig,
     /// Gripper TCP relative to the flange (tool calibration).
     pub flange_from_tcp: PoseConfig,
+    /// How far the fingertips sit along the approach from the calibrated TCP
+    /// at each opening: `[[opening_m, along_m], ...]`, openings ascending
+    /// (a linkage gripper's tips travel as it closes; empty: they do not).
+    pub fingertip_travel: Vec<[f64; 2]>,
     /// Joint moves: speed (rad/s).
     pub joint_speed: f64,
     /// Joint moves: acceleration (rad/s^2).
@@ -144,6 +148,7 @@ impl Default for BridgeConfig {
                     position: [0.0, 0.0, 0.233],
                     orientation: [0.0, 0.0, 0.0, 1.0],
                 },
+                fingertip_travel: pick.fingertip_travel.clone(),
                 joint_speed: pick.joint_speed,
                 joint_accel: pick.joint_accel,
                 tool_speed: pick.tool_speed,
@@ -273,6 +278,7 @@ impl BridgeConfig {
         Ok(PickConfig {
             world_from_base: self.robot.world_from_base.isometry("robot.world_from_base")?,
             flange_from_tcp: self.robot.flange_from_tcp.isometry("robot.flange_from_tcp")?,
+            fingertip_travel: self.fingertip_travel()?,
             pregrasp_m: self.pick.pregrasp_m,
             lift_m: self.pick.lift_m,
             world_from_drop: self.pick.world_from_drop.isometry("pick.world_from_drop")?,
@@ -283,6 +289,25 @@ impl BridgeConfig {
             obstacles: vec![self.basket()],
             ..PickConfig::default()
         })
+    }
+
+    /// `robot.fingertip_travel`, checked: finite, openings ascending within
+    /// 0-0.3 m, offsets within 0.1 m.
+    fn fingertip_travel(&self) -> Result<Vec<[f64; 2]>> {
+        let travel = &self.robot.fingertip_travel;
+        let sane = travel
+            .iter()
+            .all(|[w, d]| (0.0..=0.3).contains(w) && d.abs() <= 0.1)
+            && travel.windows(2).all(|p| p[0][0] < p[1][0]);
+        if !sane {
+            return Err(bad(
+                "robot.fingertip_travel",
+                format!(
+                    "{travel:?}: [opening_m, along_m] pairs, openings ascending in 0-0.3 m, |along_m| <= 0.1"
+                ),
+            ));
+        }
+        Ok(travel.clone())
     }
 
     /// `planner.approach_cone` as the planner's cone, checked.
@@ -336,6 +361,14 @@ mod tests {
             (
                 "[planner]\napproach_cone = { axis = [0.0, 0.0, -1.0], half_angle_deg = 0.0 }\n",
                 "planner.approach_cone",
+            ),
+            (
+                "[robot]\nfingertip_travel = [[0.1, 0.0], [0.05, 0.01]]\n",
+                "robot.fingertip_travel",
+            ),
+            (
+                "[robot]\nfingertip_travel = [[0.1, 0.5]]\n",
+                "robot.fingertip_travel",
             ),
         ] {
             let err = BridgeConfig::from_toml(text).unwrap_err().to_string();

@@ -45,6 +45,14 @@ pub struct PickConfig {
     /// coupling: about 0.233 m along the flange z; fingers closing along the
     /// TCP x here. Set both from your own calibration.
     pub flange_from_tcp: Isometry3<f64>,
+    /// The fingertips' offset along the approach from the calibrated TCP at
+    /// each opening, `[opening_m, along_m]`, openings ascending (a linkage
+    /// gripper's tips move as it closes; empty: a rigid TCP).
+    pub fingertip_travel: Vec<[f64; 2]>,
+    /// The planner's grasp width is the object's width plus this (the
+    /// service's `decode.opening_margin_m`): the pads meet the object at
+    /// `width_m` less this, and that is where the fingertips must be at the grasp.
+    pub opening_margin_m: f64,
     /// Pre-grasp distance back along the approach (m).
     pub pregrasp_m: f64,
     /// Lift height after closing (m, world up).
@@ -76,6 +84,8 @@ impl Default for PickConfig {
         Self {
             world_from_base: Isometry3::identity(),
             flange_from_tcp: Isometry3::translation(0.0, 0.0, 0.233),
+            fingertip_travel: Vec::new(),
+            opening_margin_m: 0.02,
             pregrasp_m: 0.10,
             lift_m: 0.15,
             world_from_drop: Isometry3::from_parts(
@@ -160,7 +170,12 @@ pub fn plan_pick(
                 .filter(|(i, _)| Some(*i) != grasp.object)
                 .map(|(_, o)| o.clone()),
         );
-        let world = CollisionWorld::new(config.world_from_base, &obstacles, config.arm_model.clone());
+        let opening = approach_opening(grasp.width_m);
+        let world = CollisionWorld::new(config.world_from_base, &obstacles, config.arm_model.clone())
+            .with_gripper(
+                config.flange_from_tcp * Translation3::new(0.0, 0.0, config.fingertip_along(opening)),
+                opening,
+            );
         match plan_one(arm, config, &world, grasp, current) {
             Ok(steps) => {
                 return Ok(PickPlan {
@@ -229,6 +244,29 @@ pub fn plan_pick_multi(
     Err(last_error)
 }
 
+/// How far the fingers open for the approach to a grasp `width_m` wide:
+/// 2 cm more, within the 2F-140's 14 cm stroke. The collision checks use it
+/// for the whole pick (the fingers are never wider).
+fn approach_opening(width_m: f64) -> f64 {
+    (width_m + 0.02).clamp(0.0, 0.14)
+}
+
+impl PickConfig {
+    /// Where the fingertips are along the approach from the calibrated TCP
+    /// at `opening_m` (m): `fingertip_travel` interpolated, held at its ends.
+    pub fn fingertip_along(&self, opening_m: f64) -> f64 {
+        let t = &self.fingertip_travel;
+        match t.iter().position(|[w, _]| *w >= opening_m) {
+            None => t.last().map_or(0.0, |p| p[1]),
+            Some(0) => t[0][1],
+            Some(i) => {
+                let ([w0, d0], [w1, d1]) = (t[i - 1], t[i]);
+                d0 + (d1 - d0) * (opening_m - w0) / (w1 - w0)
+            }
+        }
+    }
+}
+
 fn plan_one(
     arm: &Ur5e,
     config: &PickConfig,
@@ -256,10 +294,15 @@ fn plan_one(
     };
     let mut best: Option<(f64, Vec<Step>)> = None;
     let mut reason = "no IK solution within the limits".to_owned();
+    // The TCP held back along the approach by where the fingertips will be
+    // when the pads meet the object, so that they meet it at the grasp.
+    let contact = (grasp.width_m - config.opening_margin_m).max(0.0);
+    let tips_at_contact = config.fingertip_along(contact);
     for flip in [0.0, PI] {
-        let world_from_tcp =
+        let world_from_grasp =
             grasp.world_from_grasp * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), flip);
-        let approach = world_from_tcp.rotation * Vector3::z();
+        let approach = world_from_grasp.rotation * Vector3::z();
+        let world_from_tcp = Translation3::from(-tips_at_contact * approach) * world_from_grasp;
         let pre = Isometry3::from_parts(
             Translation3::from(world_from_tcp.translation.vector - config.pregrasp_m * approach),
             world_from_tcp.rotation,
@@ -337,7 +380,7 @@ fn plan_one(
         let mut steps = vec![Step::Gripper {
             name: "open before approach",
             close: false,
-            width_m: (grasp.width_m + 0.02).min(0.14),
+            width_m: approach_opening(grasp.width_m),
         }];
         steps.extend(via(&to_pre, "pre-grasp"));
         steps.push(Step::MoveL {
@@ -489,6 +532,52 @@ mod tests {
     }
 
     const HOME: Joints = [0.0, -PI / 2.0, PI / 2.0, -PI / 2.0, -PI / 2.0, 0.0];
+
+    #[test]
+    fn the_fingertips_meet_the_object_at_the_grasp() {
+        let arm = Ur5e::default();
+        // Tips 5 mm further out closed, 25 mm pulled back at 14 cm, as a 2F-140's.
+        let config = PickConfig {
+            fingertip_travel: vec![[0.0, 0.005], [0.06, 0.0], [0.14, -0.025]],
+            ..PickConfig::default()
+        };
+        assert_eq!(config.fingertip_along(-1.0), 0.005);
+        assert_eq!(config.fingertip_along(0.06), 0.0);
+        assert!((config.fingertip_along(0.10) + 0.0125).abs() < 1e-12);
+        assert_eq!(config.fingertip_along(0.2), -0.025);
+        assert_eq!(PickConfig::default().fingertip_along(0.1), 0.0);
+        // A 10 cm grasp: the pads meet the object at 8 cm, where the tips
+        // are 6.25 mm behind the calibrated TCP, so the TCP goes 6.25 mm
+        // further down than the grasp.
+        let mut grasp = top_grasp(0.1, -0.45, 0.05);
+        grasp.width_m = 0.10;
+        let tcp_z = |config: &PickConfig| {
+            let plan = plan_pick(&arm, config, &[grasp], &[], &HOME).unwrap();
+            plan.steps
+                .iter()
+                .find_map(|s| match s {
+                    Step::MoveL {
+                        name: "approach",
+                        base_from_tcp,
+                        joints,
+                        ..
+                    } => {
+                        let fk = config.world_from_base * arm.forward(joints) * config.flange_from_tcp;
+                        assert!(
+                            (fk.translation.vector
+                                - config.world_from_base * base_from_tcp.translation.vector)
+                                .norm()
+                                < 1e-6
+                        );
+                        Some(fk.translation.z)
+                    }
+                    _ => None,
+                })
+                .unwrap()
+        };
+        assert!((tcp_z(&PickConfig::default()) - 0.05).abs() < 1e-6);
+        assert!((tcp_z(&config) - (0.05 - 0.00625)).abs() < 1e-6);
+    }
 
     #[test]
     fn reachable_grasp_gives_the_full_sequence_and_poses_match_fk() {
@@ -658,14 +747,18 @@ mod tests {
         grasp.object = None;
         let err = plan_pick(&arm, &config, &[grasp], std::slice::from_ref(&target), &HOME).unwrap_err();
         assert!(err.to_string().contains("target"), "{err}");
-        // A tall neighbour right beside the approach blocks it.
+        // A tall neighbour right beside the approach blocks it: 6 cm from
+        // the grasp across the closing direction it clears the 2F-140
+        // (3.7 cm half thick), 3 cm away it does not.
         grasp.object = Some(0);
-        let neighbour = BoxObstacle {
+        let neighbour = |y: f64| BoxObstacle {
             name: "neighbour".to_owned(),
-            world_from_box: Isometry3::translation(0.1, -0.36, 0.15),
+            world_from_box: Isometry3::translation(0.1, y, 0.15),
             half_extents_m: Vector3::new(0.04, 0.03, 0.15),
         };
-        let err = plan_pick(&arm, &config, &[grasp], &[target, neighbour], &HOME).unwrap_err();
+        let beside = [target.clone(), neighbour(-0.36)];
+        assert!(plan_pick(&arm, &config, &[grasp], &beside, &HOME).is_ok());
+        let err = plan_pick(&arm, &config, &[grasp], &[target, neighbour(-0.39)], &HOME).unwrap_err();
         assert!(err.to_string().contains("neighbour"), "{err}");
     }
 
