@@ -7,7 +7,7 @@ use std::{
 };
 
 use futures_util::{Stream, StreamExt};
-use mvgrasp_core::{Finished, GraspMaps, Planner, PlannerConfig};
+use mvgrasp_core::{Finished, GraspMaps, Planner};
 use mvgrasp_proto::v1::{self as pb, grasp_planner_server::GraspPlanner};
 use tokio::sync::Semaphore;
 use tonic::{Code, Request, Response, Status, Streaming};
@@ -40,7 +40,7 @@ impl PlannerState {
     /// Starts the inference worker for `net` and builds the pipeline for its contract.
     pub fn new(settings: Settings, net: LoadedNet, metrics: Arc<Metrics>) -> Result<Self> {
         let contract = net.net.contract().clone();
-        let planner = Planner::new(PlannerConfig::default(), contract.clone())
+        let planner = Planner::new(settings.segment.planner_config(), contract.clone())
             .map_err(|e| Error::Startup(format!("pipeline: {e}")))?;
         let info = convert::model_info(&contract, net.backend, settings.batching.max_batch_views);
         metrics

@@ -145,6 +145,38 @@ impl Default for RequestDefaults {
     }
 }
 
+/// How depth frames are cut into objects (`core::segment`); the defaults are
+/// the planner's, chosen on the referee's train pool.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SegmentSettings {
+    /// Points closer than this belong to one object (m).
+    pub tolerance_m: f32,
+    /// Also cut clusters at concave creases of the depth image (with
+    /// `CreaseConfig`'s defaults).
+    pub crease_split: bool,
+}
+
+impl Default for SegmentSettings {
+    fn default() -> Self {
+        let cluster = mvgrasp_core::ClusterConfig::default();
+        Self {
+            tolerance_m: cluster.tolerance_m,
+            crease_split: cluster.crease.is_some(),
+        }
+    }
+}
+
+impl SegmentSettings {
+    /// The planner's settings with these applied.
+    pub fn planner_config(&self) -> mvgrasp_core::PlannerConfig {
+        let mut config = mvgrasp_core::PlannerConfig::default();
+        config.cluster.tolerance_m = self.tolerance_m;
+        config.cluster.crease = self.crease_split.then(mvgrasp_core::CreaseConfig::default);
+        config
+    }
+}
+
 /// All settings of the server.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -161,6 +193,8 @@ pub struct Settings {
     pub limits: Limits,
     /// Request defaults.
     pub defaults: RequestDefaults,
+    /// Segmentation.
+    pub segment: SegmentSettings,
     /// How long SIGTERM waits for in-flight calls before closing (s).
     pub shutdown_grace_s: f64,
 }
@@ -174,6 +208,7 @@ impl Default for Settings {
             batching: BatchSettings::default(),
             limits: Limits::default(),
             defaults: RequestDefaults::default(),
+            segment: SegmentSettings::default(),
             shutdown_grace_s: 10.0,
         }
     }
@@ -332,6 +367,10 @@ impl Settings {
         if !(q.is_finite() && (0.0..=1.0).contains(&q)) {
             return bad("defaults.min_quality", format!("{q} is not in [0, 1]"));
         }
+        let t = self.segment.tolerance_m;
+        if !(t.is_finite() && (0.001..=0.1).contains(&t)) {
+            return bad("segment.tolerance_m", format!("{t} is not in [0.001, 0.1]"));
+        }
         if self.defaults.max_grasps == 0 {
             return bad("defaults.max_grasps", "must be > 0".into());
         }
@@ -414,5 +453,23 @@ mod tests {
                 .to_string()
                 .contains("defaults.min_quality")
         );
+        let mut s = Settings::default();
+        s.segment.tolerance_m = 0.0;
+        assert!(
+            s.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("segment.tolerance_m")
+        );
+    }
+
+    #[test]
+    fn the_segment_section_reaches_the_planner() {
+        let defaults = Settings::default().segment.planner_config();
+        assert_eq!(defaults.cluster, mvgrasp_core::ClusterConfig::default());
+        let s = Settings::from_toml("[segment]\ntolerance_m = 0.02\ncrease_split = true\n").unwrap();
+        let config = s.segment.planner_config();
+        assert_eq!(config.cluster.tolerance_m, 0.02);
+        assert_eq!(config.cluster.crease, Some(mvgrasp_core::CreaseConfig::default()));
     }
 }

@@ -158,7 +158,7 @@ pub fn square_turn_setting(deg: f64) -> Result<f64> {
 }
 
 /// The crease split from its text form (`sim eval --crease-split`): `on`
-/// (the defaults), `off`, `split-only` (the defaults without step 6, parts
+/// (`CreaseConfig`'s defaults), `off` (the planner's default), `split-only` (the defaults without step 6, parts
 /// hanging on another joining it), or
 /// `SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART` (the fields of
 /// [`CreaseConfig`], the valley in millimetres; step 6 with its defaults),

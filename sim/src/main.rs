@@ -169,11 +169,12 @@ enum Command {
         /// Episodes per scenario drawn into OUT/snapshots (first setting).
         #[arg(long, default_value_t = 2)]
         snapshots: usize,
-        /// The in-process planner's crease split: `on` (the defaults), `off`,
-        /// `split-only` (no re-joining of parts that hang on another), or
+        /// The in-process planner's crease split: `off` (the planner's
+        /// default), `on` (`CreaseConfig`'s defaults), `split-only` (no
+        /// re-joining of parts that hang on another), or
         /// `SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART[:AREA_CM2:SHARE:OUTLINE:STEP_MM]`
         /// to try others (`CreaseConfig`, `Reattach`).
-        #[arg(long, default_value = "on")]
+        #[arg(long, default_value = "off")]
         crease_split: String,
         /// Also label the first setting's episode frames (each scene as the
         /// earlier attempts left it) as `sim datagen` labels its scenes, into

@@ -3,8 +3,8 @@
 
 use mvgrasp_core::decode::HandConfig;
 use mvgrasp_core::{
-    ClusterConfig, GraspNet, MomentsNet, Plan, PlanOptions, Planner, PlannerConfig, Repairs, ViewPolicy,
-    approach_of,
+    ClusterConfig, CreaseConfig, GraspNet, MomentsNet, Plan, PlanOptions, Planner, PlannerConfig, Repairs,
+    ViewPolicy, approach_of,
 };
 use nalgebra::{Point3, Vector3};
 
@@ -92,10 +92,10 @@ fn fifteen_objects() {
 /// Touching objects: a cylinder stands against the camera-facing side of a
 /// tall box; a shorter box touches the tall box's far side, its top 2 cm
 /// below the tall box's (the face that joins them is hidden); a lone box
-/// stands apart. Euclidean clustering alone (crease split off) joins the
+/// stands apart. Euclidean clustering alone (the default) joins the
 /// cylinder to the tall box, their visible surfaces meet: three objects. The
-/// crease split cuts them apart where they meet, a concave crease in the
-/// depth image: four.
+/// crease split (off by default) cuts them apart where they meet, a concave
+/// crease in the depth image: four.
 #[test]
 fn touching_objects_split_at_the_crease_where_they_meet() {
     let z = 0.0;
@@ -110,16 +110,16 @@ fn touching_objects_split_at_the_crease_where_they_meet() {
         ],
     };
     let camera = Camera::orbit(Vector3::zeros(), 0.8, 55.0, -60.0);
-    let without_split = PlannerConfig {
+    let with_split = PlannerConfig {
         cluster: ClusterConfig {
-            crease: None,
+            crease: Some(CreaseConfig::default()),
             ..ClusterConfig::default()
         },
         ..PlannerConfig::default()
     };
     for (config, groups) in [
-        (without_split, vec![vec![2, 4], vec![3], vec![5]]),
-        (PlannerConfig::default(), vec![vec![2], vec![4], vec![3], vec![5]]),
+        (PlannerConfig::default(), vec![vec![2, 4], vec![3], vec![5]]),
+        (with_split, vec![vec![2], vec![4], vec![3], vec![5]]),
     ] {
         let split = config.cluster.crease.is_some();
         let (plan, rendered) = plan_rendered_with(config, &scene, &camera, &PlanOptions::default());
