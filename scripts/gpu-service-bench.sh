@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The service on a GPU machine: the CUDA backend (and the CPU one beside it)
-# under `mvgrasp bench`, samples/table6, one client and 16 clients.
+# under `mvgrasp bench`, samples/table6, the server's default request (view
+# cascade on) and default model, from 1 to 256 concurrent clients.
 #
 # Needs: a server built with `cargo build --release -p mvgrasp-server -p mvgrasp-client
 # --features mvgrasp-server/cuda`, and ONNX Runtime 1.31.1's GPU build, i.e. the
@@ -12,38 +13,49 @@
 #     CLIENT=target/release/mvgrasp bash scripts/gpu-service-bench.sh [SECONDS]
 #
 # Each setting: a fresh server (its CUDA warm-up line goes to stdout), then
-# `mvgrasp bench --json` (appended to $OUT/bench.jsonl, labelled).
+# `mvgrasp bench --json` per client count (appended to $OUT/bench.jsonl,
+# labelled), then the server's per-stage time sums from /metrics
+# ($OUT/stages-LABEL.txt).
 set -uo pipefail
-seconds=${1:-6}
+seconds=${1:-8}
 ORT_GPU_DIR=${ORT_GPU_DIR:?the folder holding libonnxruntime.so.1.31.1 of the GPU wheel}
 OUT=${OUT:-target/bench}
 S=${SERVER:-target/release/mvgrasp-server}
 C=${CLIENT:-target/release/mvgrasp}
+MODEL=${MODEL:-$(sed -n 's/^path = "\([^"]*\)".*/\1/p' deploy/server.toml | head -1)}
 mkdir -p "$OUT"
 NV=$(python3 -c "import nvidia; print(list(nvidia.__path__)[0])" 2>/dev/null || true)
 LIBS=$([ -n "$NV" ] && find "$NV" -name 'lib*.so*' -printf '%h\n' | sort -u | paste -sd: || true)
 export LD_LIBRARY_PATH="$ORT_GPU_DIR${LIBS:+:$LIBS}${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 ORT=$ORT_GPU_DIR/libonnxruntime.so.1.31.1
 SCENE=(--depth samples/table6/depth.png --camera samples/table6/camera.json)
+echo "model $MODEL; $(nproc) cores; $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null)"
 port=50600
-run() { # label device max_batch_views conv_search
+run() { # label device max_batch_views conv_search clients...
     local label=$1 dev=$2 mb=$3 search=$4
-    port=$((port + 1))
-    RUST_LOG=info NO_COLOR=1 "$S" --listen 127.0.0.1:$port --no-metrics --model models/mvgrasp.onnx \
-        --onnxruntime "$ORT" --device "$dev" --intra-threads 2 --max-batch-views "$mb" --max-wait-ms 2 \
-        --cuda-conv-search "$search" >"$OUT/server-$label.log" 2>&1 &
+    shift 4
+    port=$((port + 2))
+    RUST_LOG=info NO_COLOR=1 "$S" --config deploy/server.toml --listen 127.0.0.1:$port \
+        --metrics-listen 127.0.0.1:$((port + 1)) --model "$MODEL" --onnxruntime "$ORT" --device "$dev" \
+        --intra-threads 2 --max-batch-views "$mb" --max-wait-ms 2 --cuda-conv-search "$search" \
+        >"$OUT/server-$label.log" 2>&1 &
     local pid=$!
-    for _ in $(seq 900); do "$C" --server http://127.0.0.1:$port health >/dev/null 2>&1 && break; sleep 0.1; done
-    sed 's/\x1b\[[0-9;]*m//g' "$OUT/server-$label.log" | grep -oE "(CUDA|WARN).*" | head -3
-    for clients in 1 16; do
+    for _ in $(seq 900); do
+        "$C" --server http://127.0.0.1:$port health >/dev/null 2>&1 && break
+        kill -0 "$pid" 2>/dev/null || { echo "$label: the server exited"; tail -5 "$OUT/server-$label.log"; return; }
+        sleep 0.1
+    done
+    sed 's/\x1b\[[0-9;]*m//g' "$OUT/server-$label.log" | grep -oE "(CUDA|WARN|ERROR).*" | head -3
+    for clients in "$@"; do
         local report
         report=$("$C" --server http://127.0.0.1:$port bench "${SCENE[@]}" --warmup 20 --json \
-            --concurrency $clients --duration-s "$seconds")
+            --concurrency "$clients" --duration-s "$seconds")
         echo "{\"label\": \"$label\", \"clients\": $clients, \"report\": $report}" | tee -a "$OUT/bench.jsonl"
     done
+    python3 -c "import urllib.request as u; print(u.urlopen('http://127.0.0.1:$((port + 1))/metrics').read().decode())" \
+        | grep -E "^mvgrasp_stage_duration_seconds_(sum|count)" >"$OUT/stages-$label.txt"
     kill "$pid"; wait "$pid" 2>/dev/null
 }
-run cuda-exhaustive-b64 cuda 64 exhaustive
-run cuda-exhaustive-b16 cuda 16 exhaustive
-run cuda-default-b64 cuda 64 default
-run cpu-b64 cpu 64 exhaustive
+run cuda-b64 cuda 64 exhaustive 1 16 64 256
+run cuda-b16 cuda 16 exhaustive 16 64 256
+run cpu cpu 32 exhaustive 1 16 64
