@@ -9,7 +9,7 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use crate::decode::{
     Collision, DecodeConfig, Grasp, HandConfig, Obstacle, RankConfig, Ranked, Repairs, Verdict,
     ViewPlacement, contact_slopes, decode_view, deepen, fit_opening, hand_collision, hand_out_of_view,
-    rank_grasps_vetted, squaring_turn, turn_away,
+    lever_arm_m, rank_grasps_scored, squaring_turn, turn_away,
 };
 use crate::error::{Error, Result};
 use crate::geometry::Workspace;
@@ -704,13 +704,22 @@ impl Planner {
             })
             .collect();
         let mut turned_square = 0;
-        let ranked = rank_grasps_vetted(
+        let centre_weight = self.config.decode.centre_weight;
+        let score = |g: &Grasp| match index_of(g.object_id) {
+            Some(i) if centre_weight != 0.0 => {
+                let centre = objects[i].object.frame.world_from_object.translation.vector;
+                g.quality - centre_weight * (lever_arm_m(g, &centre) / 0.1) as f32
+            }
+            _ => g.quality,
+        };
+        let ranked = rank_grasps_scored(
             grasps,
             &RankConfig {
                 min_quality: options.min_quality,
                 max_per_object,
                 max_grasps: options.max_grasps,
             },
+            score,
             |g| {
                 let hand = &self.config.hand;
                 let own = index_of(g.object_id);

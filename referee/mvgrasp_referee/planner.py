@@ -94,6 +94,7 @@ class Planner:
                             o.world_from_object.orientation.z, o.world_from_object.orientation.w],
             "extent_min_m": [o.extent_min_m.x, o.extent_min_m.y, o.extent_min_m.z],
             "extent_max_m": [o.extent_max_m.x, o.extent_max_m.y, o.extent_max_m.z],
+            "refused": {cause: getattr(o.refused, cause) for cause in REFUSALS},
         } for o in response.objects]
         table = {"normal": [response.table.normal.x, response.table.normal.y, response.table.normal.z],
                  "offset_m": response.table.offset_m}
@@ -102,6 +103,10 @@ class Planner:
 
     def close(self):
         self.channel.close()
+
+
+# What a detected object's candidate grasps were lost to (`ObjectRefusals`).
+REFUSALS = ("table", "neighbour", "own_points", "outside_approach_cone")
 
 
 def bridge_scene(plan):

@@ -15,7 +15,7 @@ import numpy as np
 
 from . import camera as cammod
 from . import executor, gripper, scenes
-from .planner import bridge_scene
+from .planner import REFUSALS, bridge_scene
 
 MAX_GRASPS_TRIED = 10
 
@@ -81,6 +81,10 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                      "refused": []}
             if not plan["grasps"]:
                 entry["outcome"] = "no-grasp"
+                # Why, summed over the detected objects (the planner's own count).
+                entry["refused_by_planner"] = {
+                    cause: sum(o.get("refused", {}).get(cause, 0) for o in plan["objects"])
+                    for cause in REFUSALS}
                 record["attempts"].append(entry)
                 record["end"] = "no-grasp"
                 break

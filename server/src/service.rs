@@ -40,7 +40,7 @@ impl PlannerState {
     /// Starts the inference worker for `net` and builds the pipeline for its contract.
     pub fn new(settings: Settings, net: LoadedNet, metrics: Arc<Metrics>) -> Result<Self> {
         let contract = net.net.contract().clone();
-        let planner = Planner::new(settings.segment.planner_config(), contract.clone())
+        let planner = Planner::new(settings.planner_config(), contract.clone())
             .map_err(|e| Error::Startup(format!("pipeline: {e}")))?;
         let info = convert::model_info(&contract, net.backend, settings.batching.max_batch_views);
         metrics

@@ -167,13 +167,24 @@ impl Default for SegmentSettings {
     }
 }
 
-impl SegmentSettings {
-    /// The planner's settings with these applied.
-    pub fn planner_config(&self) -> mvgrasp_core::PlannerConfig {
-        let mut config = mvgrasp_core::PlannerConfig::default();
-        config.cluster.tolerance_m = self.tolerance_m;
-        config.cluster.crease = self.crease_split.then(mvgrasp_core::CreaseConfig::default);
-        config
+/// How grasps are read from the network's maps and ranked (`core::decode`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DecodeSettings {
+    /// Candidate grasps (peaks of the quality map) per view.
+    pub peaks_per_view: usize,
+    /// Quality taken off per 10 cm between the object's visible centre and
+    /// the closing line (`DecodeConfig::centre_weight`; 0: quality alone).
+    pub centre_weight: f32,
+}
+
+impl Default for DecodeSettings {
+    fn default() -> Self {
+        let decode = mvgrasp_core::DecodeConfig::default();
+        Self {
+            peaks_per_view: decode.peaks_per_view,
+            centre_weight: decode.centre_weight,
+        }
     }
 }
 
@@ -195,6 +206,8 @@ pub struct Settings {
     pub defaults: RequestDefaults,
     /// Segmentation.
     pub segment: SegmentSettings,
+    /// Decoding and ranking.
+    pub decode: DecodeSettings,
     /// How long SIGTERM waits for in-flight calls before closing (s).
     pub shutdown_grace_s: f64,
 }
@@ -209,6 +222,7 @@ impl Default for Settings {
             limits: Limits::default(),
             defaults: RequestDefaults::default(),
             segment: SegmentSettings::default(),
+            decode: DecodeSettings::default(),
             shutdown_grace_s: 10.0,
         }
     }
@@ -367,6 +381,16 @@ impl Settings {
         if !(q.is_finite() && (0.0..=1.0).contains(&q)) {
             return bad("defaults.min_quality", format!("{q} is not in [0, 1]"));
         }
+        let w = self.decode.centre_weight;
+        if !(w.is_finite() && (0.0..=10.0).contains(&w)) {
+            return bad("decode.centre_weight", format!("{w} is not in [0, 10]"));
+        }
+        if !(1..=64).contains(&self.decode.peaks_per_view) {
+            return bad(
+                "decode.peaks_per_view",
+                format!("{} is not in 1..=64", self.decode.peaks_per_view),
+            );
+        }
         let t = self.segment.tolerance_m;
         if !(t.is_finite() && (0.001..=0.1).contains(&t)) {
             return bad("segment.tolerance_m", format!("{t} is not in [0.001, 0.1]"));
@@ -381,6 +405,19 @@ impl Settings {
             );
         }
         Ok(())
+    }
+
+    /// The planner's settings: its defaults with `[segment]` and `[decode]` applied.
+    pub fn planner_config(&self) -> mvgrasp_core::PlannerConfig {
+        let mut config = mvgrasp_core::PlannerConfig::default();
+        config.cluster.tolerance_m = self.segment.tolerance_m;
+        config.cluster.crease = self
+            .segment
+            .crease_split
+            .then(mvgrasp_core::CreaseConfig::default);
+        config.decode.centre_weight = self.decode.centre_weight;
+        config.decode.peaks_per_view = self.decode.peaks_per_view;
+        config
     }
 
     /// The number of requests that run CPU stages at once.
@@ -464,12 +501,34 @@ mod tests {
     }
 
     #[test]
-    fn the_segment_section_reaches_the_planner() {
-        let defaults = Settings::default().segment.planner_config();
+    fn the_segment_and_decode_sections_reach_the_planner() {
+        let defaults = Settings::default().planner_config();
         assert_eq!(defaults.cluster, mvgrasp_core::ClusterConfig::default());
-        let s = Settings::from_toml("[segment]\ntolerance_m = 0.02\ncrease_split = true\n").unwrap();
-        let config = s.segment.planner_config();
+        assert_eq!(defaults.decode, mvgrasp_core::DecodeConfig::default());
+        let s = Settings::from_toml(
+            "[segment]\ntolerance_m = 0.02\ncrease_split = true\n[decode]\ncentre_weight = 0.5\npeaks_per_view = 8\n",
+        )
+        .unwrap();
+        let config = s.planner_config();
         assert_eq!(config.cluster.tolerance_m, 0.02);
         assert_eq!(config.cluster.crease, Some(mvgrasp_core::CreaseConfig::default()));
+        assert_eq!(config.decode.centre_weight, 0.5);
+        assert_eq!(config.decode.peaks_per_view, 8);
+        let mut s = Settings::default();
+        s.decode.centre_weight = f32::NAN;
+        assert!(
+            s.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("decode.centre_weight")
+        );
+        let mut s = Settings::default();
+        s.decode.peaks_per_view = 0;
+        assert!(
+            s.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("decode.peaks_per_view")
+        );
     }
 }

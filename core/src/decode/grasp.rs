@@ -43,6 +43,12 @@ pub struct DecodeConfig {
     /// this much wider and closes to contact. A network trained with MSE
     /// under-predicts openings (measured in BENCHMARKS.md / sim README).
     pub opening_margin_m: f64,
+    /// Ranking: each grasp's quality less this much per 10 cm of its lever
+    /// arm, the horizontal distance from the object's visible centre to the
+    /// closing line ([`lever_arm_m`]): the planner cannot see mass, but the
+    /// centre is its best guess, and a grip far from it lets a heavy end
+    /// turn out of the pads. 0: by quality alone.
+    pub centre_weight: f32,
 }
 
 impl Default for DecodeConfig {
@@ -55,8 +61,22 @@ impl Default for DecodeConfig {
             insertion_m: 0.03,
             table_clearance_m: 0.003,
             opening_margin_m: 0.02,
+            centre_weight: 0.0,
         }
     }
+}
+
+/// How far gravity acting at `centre` pulls about the grasp's closing line
+/// (m): the distance between them across the pads, in the horizontal plane.
+/// 0 for a closing line that stands vertical.
+pub fn lever_arm_m(grasp: &Grasp, centre: &Vector3<f64>) -> f64 {
+    let closing = grasp.world_from_grasp.rotation * Vector3::x();
+    let across = closing.cross(&Vector3::z());
+    let norm = across.norm();
+    if norm < 1e-9 {
+        return 0.0;
+    }
+    ((centre - grasp.world_from_grasp.translation.vector).dot(&across) / norm).abs()
 }
 
 /// What the planner changed about a grasp after decoding it from its
@@ -302,5 +322,40 @@ mod tests {
             ..Repairs::default()
         };
         assert_eq!(two.names(), ["squared", "out of view"]);
+    }
+
+    #[test]
+    fn the_lever_arm_is_the_horizontal_distance_across_the_pads() {
+        use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+        // From above (approach -z), closing along world x, at (0.1, 0.2, 0.05).
+        let down = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+        let grasp = super::Grasp {
+            world_from_grasp: Isometry3::from_parts(Translation3::new(0.1, 0.2, 0.05), down),
+            width_m: 0.06,
+            quality: 0.9,
+            object_id: 0,
+            view: crate::view::ViewAxis::Top,
+            pixel: [0, 0],
+            angle_rad: 0.0,
+            repairs: Repairs::default(),
+        };
+        let arm = |dx: f64, dy: f64, dz: f64| {
+            super::lever_arm_m(&grasp, &Vector3::new(0.1 + dx, 0.2 + dy, 0.05 + dz))
+        };
+        assert!((arm(0.0, 0.03, 0.0) - 0.03).abs() < 1e-12);
+        assert!((arm(0.0, -0.03, 0.0) - 0.03).abs() < 1e-12);
+        // Along the closing line or straight below it: no lever.
+        assert!(arm(0.04, 0.0, 0.0).abs() < 1e-12);
+        assert!(arm(0.0, 0.0, -0.08).abs() < 1e-12);
+        // A closing line standing vertical: none either.
+        let vertical = super::Grasp {
+            world_from_grasp: Isometry3::from_parts(
+                Translation3::new(0.1, 0.2, 0.05),
+                UnitQuaternion::from_axis_angle(&Vector3::y_axis(), std::f64::consts::FRAC_PI_2),
+            ),
+            ..grasp
+        };
+        assert_eq!(super::lever_arm_m(&vertical, &Vector3::new(0.3, 0.3, 0.0)), 0.0);
     }
 }

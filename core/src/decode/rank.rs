@@ -47,19 +47,31 @@ pub struct Ranked<T = ()> {
 /// rank order, and only while a grasp could still make the list, so a
 /// costly check runs on few grasps.
 pub fn rank_grasps_vetted<T: Ord>(
+    grasps: Vec<Grasp>,
+    config: &RankConfig,
+    vet: impl FnMut(Grasp) -> Verdict<T>,
+) -> Ranked<T> {
+    rank_grasps_scored(grasps, config, |g| g.quality, vet)
+}
+
+/// [`rank_grasps_vetted`], ranked by `score` (higher first) instead of the
+/// quality; `min_quality` still applies to the quality.
+pub fn rank_grasps_scored<T: Ord>(
     mut grasps: Vec<Grasp>,
     config: &RankConfig,
+    score: impl Fn(&Grasp) -> f32,
     mut vet: impl FnMut(Grasp) -> Verdict<T>,
 ) -> Ranked<T> {
     grasps.retain(|g| g.quality >= config.min_quality);
-    grasps.sort_by(|a, b| {
-        b.quality
-            .total_cmp(&a.quality)
+    let mut scored: Vec<(f32, Grasp)> = grasps.into_iter().map(|g| (score(&g), g)).collect();
+    scored.sort_by(|(sa, a), (sb, b)| {
+        sb.total_cmp(sa)
             .then(a.object_id.cmp(&b.object_id))
             .then(a.view.cmp(&b.view))
             .then(a.pixel[1].cmp(&b.pixel[1]))
             .then(a.pixel[0].cmp(&b.pixel[0]))
     });
+    let grasps = scored.into_iter().map(|(_, g)| g);
     let mut per_object: rustc_hash::FxHashMap<u32, usize> = rustc_hash::FxHashMap::default();
     let mut kept = Vec::with_capacity(config.max_grasps.min(grasps.len()));
     let (mut refused, mut deferred) = (0, Vec::new());
@@ -226,5 +238,29 @@ mod tests {
         let keys: Vec<u32> = ranked.grasps.iter().map(|g| g.pixel[0]).collect();
         assert_eq!(keys, vec![2, 4, 5]);
         assert!(ranked.deferred.is_empty());
+    }
+
+    #[test]
+    fn a_score_reorders_but_min_quality_still_reads_the_quality() {
+        let grasps = vec![
+            grasp(1, 0.9, 1),
+            grasp(1, 0.8, 2),
+            grasp(2, 0.7, 3),
+            grasp(2, 0.3, 4),
+        ];
+        let config = RankConfig {
+            min_quality: 0.5,
+            max_per_object: 5,
+            max_grasps: 10,
+        };
+        // Pixel u 1 is penalised most: it goes last; 0.3 stays out whatever its score.
+        let ranked = rank_grasps_scored::<()>(
+            grasps,
+            &config,
+            |g| if g.pixel[0] == 1 { 0.1 } else { 1.0 - g.quality },
+            Verdict::Accept,
+        );
+        let keys: Vec<u32> = ranked.grasps.iter().map(|g| g.pixel[0]).collect();
+        assert_eq!(keys, vec![3, 2, 1]);
     }
 }
