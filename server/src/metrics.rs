@@ -118,7 +118,7 @@ impl Metrics {
             .map_err(metric_error)?,
             grasps_turned_away: IntCounter::new(
                 "grasps_turned_away_total",
-                "Grasps returned after those as planned, turned about their approach away from a neighbour",
+                "Grasps returned after those as planned, turned about their approach until the hand passed",
             )
             .map_err(metric_error)?,
             grasps_outside_approach_cone: IntCounter::new(

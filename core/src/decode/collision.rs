@@ -32,8 +32,10 @@
 //! checked again, neighbours and table included. The network places the
 //! grasp; the points say how far to open.
 //!
-//! A grasp refused because the hand would hit a *neighbour* gets another
-//! kind of chance ([`turn_away`]): turned about its approach axis by each of
+//! A grasp refused because the hand would hit a *neighbour*, or its own
+//! object with no opening within the stroke that clears it (an elongated
+//! object grasped lengthwise), gets another kind of chance ([`turn_away`]):
+//! turned about its approach axis by each of
 //! `HandConfig::neighbour_turns_deg` in turn, its opening re-fitted to its
 //! object's points, the first turn that passes the check is kept. The
 //! network never scored that angle, so the pipeline ranks such grasps after
@@ -99,7 +101,8 @@ pub struct HandConfig {
     /// pad, stands for the surface the pad meets (m).
     pub patch_slab_m: f64,
     /// Turns about the approach axis (degrees, tried in order) for a grasp
-    /// the check refused for a neighbour ([`turn_away`]); empty: none.
+    /// the check refused for a neighbour or its own object ([`turn_away`]);
+    /// empty: none.
     pub neighbour_turns_deg: Vec<f64>,
     /// Push a grasp that passes the check this much further along its
     /// approach, or half as far, where the hand still passes and the pads

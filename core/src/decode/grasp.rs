@@ -89,8 +89,9 @@ pub struct Repairs {
     /// The pads would have met the object's own seen points: opened to
     /// what was seen of it, and re-checked.
     pub refit: bool,
-    /// The hand would have hit a neighbour: turned about the approach away
-    /// from it (ranked after the grasps that passed as planned).
+    /// The hand would have hit a neighbour, or its own object at every
+    /// opening: turned about the approach until it passed (ranked after the
+    /// grasps that passed as planned).
     pub turned_away: bool,
     /// Turned about the approach to square the pads to the surfaces they
     /// meet, as seen.
