@@ -147,8 +147,9 @@ pub struct CollisionWorld {
     world_from_base: Isometry3<f64>,
     obstacles: Vec<(Pose, Cuboid, String)>,
     model: ArmModel,
-    flange_from_tcp: Isometry3<f64>,
-    opening_m: f64,
+    /// The hand's boxes in the flange frame, for the gripper set by
+    /// `with_gripper` (they do not change during a pick).
+    hand: Vec<(Isometry3<f64>, Cuboid)>,
 }
 
 fn vector(v: &Vector3<f64>) -> Vector {
@@ -180,16 +181,27 @@ impl CollisionWorld {
             world_from_base,
             obstacles,
             model,
-            flange_from_tcp: Isometry3::translation(0.0, 0.0, 0.233),
-            opening_m: 0.14,
+            hand: Vec::new(),
         }
+        .with_gripper(Isometry3::translation(0.0, 0.0, 0.233), 0.14)
     }
 
     /// The same world with the gripper's TCP at `flange_from_tcp` and its
     /// fingers `opening_m` apart (defaults: 0.233 m along the flange z, 0.14 m).
     pub fn with_gripper(mut self, flange_from_tcp: Isometry3<f64>, opening_m: f64) -> Self {
-        self.flange_from_tcp = flange_from_tcp;
-        self.opening_m = opening_m;
+        let flange_m = flange_from_tcp.translation.vector.norm();
+        self.hand = self
+            .model
+            .hand
+            .boxes(opening_m, flange_m, self.model.margin_m)
+            .into_iter()
+            .map(|(centre, half)| {
+                (
+                    flange_from_tcp * Translation3::from(centre),
+                    Cuboid::new(vector(&half)),
+                )
+            })
+            .collect();
         self
     }
 
@@ -206,17 +218,10 @@ impl CollisionWorld {
                 )
             })
             .collect();
-        let world_from_tcp = frames[6] * self.flange_from_tcp;
-        let flange_m = self.flange_from_tcp.translation.vector.norm();
         let boxes = self
-            .model
             .hand
-            .boxes(self.opening_m, flange_m, self.model.margin_m)
-            .into_iter()
-            .map(|(centre, half)| {
-                let world_from_box = world_from_tcp * Translation3::from(centre);
-                (pose(&world_from_box), Cuboid::new(vector(&half)))
-            })
+            .iter()
+            .map(|(flange_from_box, cuboid)| (pose(&(frames[6] * flange_from_box)), *cuboid))
             .collect();
         (capsules, boxes)
     }

@@ -85,7 +85,7 @@ impl Default for PickConfig {
             world_from_base: Isometry3::identity(),
             flange_from_tcp: Isometry3::translation(0.0, 0.0, 0.233),
             fingertip_travel: Vec::new(),
-            opening_margin_m: 0.02,
+            opening_margin_m: mvgrasp_core::DecodeConfig::default().opening_margin_m,
             pregrasp_m: 0.10,
             lift_m: 0.15,
             world_from_drop: Isometry3::from_parts(
