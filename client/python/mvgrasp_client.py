@@ -120,6 +120,61 @@ def approach_cone(pb, axis, half_angle_deg):
                            half_angle_rad=math.radians(half_angle_deg))
 
 
+# Calls spread round robin over every address the target names; a unary call
+# that meets an unavailable replica (unreachable, gone mid-call, shutting
+# down) is sent once more, and round robin sends it to the next replica.
+# PlanGrasps and GetModelInfo are idempotent.
+SERVICE_CONFIG = json.dumps({
+    "loadBalancingConfig": [{"round_robin": {}}],
+    "methodConfig": [{
+        "name": [{"service": "mvgrasp.v1.GraspPlanner", "method": m} for m in ("PlanGrasps", "GetModelInfo")],
+        "retryPolicy": {
+            "maxAttempts": 2, "initialBackoff": "0.01s", "maxBackoff": "0.1s", "backoffMultiplier": 2,
+            "retryableStatusCodes": ["UNAVAILABLE"],
+        },
+    }],
+})
+
+
+def target(server):
+    """The gRPC target for `server`: `host:port`, several separated by commas
+    (each name resolved now to its IPv4 addresses), or `dns:///host:port`
+    (gRPC resolves it, one replica per record, and re-resolves as it goes)."""
+    parts = [p.strip() for p in server.split(",") if p.strip()]
+    if not parts:
+        raise ValueError("no planner address given")
+    if len(parts) == 1:
+        return parts[0]
+    import socket  # noqa: PLC0415
+
+    addresses = []
+    for part in parts:
+        host, _, port = part.rpartition(":")
+        if not host or not port.isdigit():
+            raise ValueError(f"{part}: give host:port")
+        infos = socket.getaddrinfo(host, int(port), socket.AF_INET, socket.SOCK_STREAM)
+        addresses += sorted({f"{info[4][0]}:{port}" for info in infos})
+    return "ipv4:" + ",".join(addresses)
+
+
+def channel(server):
+    """An insecure channel to one planner or several replicas (see `target`)."""
+    import grpc  # noqa: PLC0415
+
+    name = target(server)
+    options = [
+        ("grpc.service_config", SERVICE_CONFIG), ("grpc.enable_retries", 1),
+        ("grpc.max_receive_message_length", 256 << 20), ("grpc.max_send_message_length", -1),
+        # A call is retried only while its request is still buffered (256 KiB
+        # by default; a 640x480 depth frame is 600 KiB).
+        ("grpc.per_rpc_retry_buffer_size", 64 << 20),
+    ]
+    if name.startswith("ipv4:"):
+        # The default :authority would be the whole list, which HTTP/2 servers refuse.
+        options.append(("grpc.default_authority", name[len("ipv4:"):].split(",")[0]))
+    return grpc.insecure_channel(name, options=options)
+
+
 def approach(q):
     """The grasp frame's +z (approach) in the world, from its quaternion."""
     x, y, z, w = q.x, q.y, q.z, q.w
@@ -128,7 +183,9 @@ def approach(q):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--server", default="127.0.0.1:50051")
+    parser.add_argument("--server", default="127.0.0.1:50051",
+                        help="host:port, several separated by commas (round robin, one retry on another "
+                             "replica), or dns:///host:port")
     parser.add_argument("--depth", required=True)
     parser.add_argument("--camera", required=True)
     parser.add_argument("--max-grasps", type=int, default=0)
@@ -139,11 +196,9 @@ def main():
                         help="the paper's single pass over the policy's views")
     args = parser.parse_args()
 
-    import grpc  # noqa: PLC0415
-
     pb, rpc = stubs()
-    with grpc.insecure_channel(args.server) as channel:
-        planner = rpc.GraspPlannerStub(channel)
+    with channel(args.server) as chan:
+        planner = rpc.GraspPlannerStub(chan)
         info = planner.GetModelInfo(pb.GetModelInfoRequest(), timeout=args.timeout_s)
         print(f"model {info.model_version} on {info.backend}, views {info.input_size_px} px")
         options = {"max_grasps": args.max_grasps}

@@ -4,7 +4,9 @@
 Usage: python3 client/python/test_client.py SERVER_BINARY ONNXRUNTIME_LIBRARY
 Starts the server (tiny fixture model, ONNX Runtime CPU) on a free port, plans
 on samples/table6 from Python, checks the response contract and a bad request,
-then stops the server with SIGTERM. Needs grpcio + grpcio-tools on sys.path.
+then stops the server with SIGTERM. Then three replicas (analytic backend)
+behind one comma-separated address, 16 callers, one replica killed mid-run
+and a second stopped later: no call may be lost. Needs grpcio + grpcio-tools on sys.path.
 """
 
 import math
@@ -13,6 +15,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -35,6 +38,59 @@ def free_port():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def check_replicas(server_bin, pb, rpc):
+    """16 callers over 3 replicas; replica 1 is killed (SIGKILL) mid-run, replica 2 stopped (SIGTERM) later."""
+    ports = [free_port() for _ in range(3)]
+    replicas = [subprocess.Popen([server_bin, "--backend", "baseline", "--no-metrics", "--listen", f"127.0.0.1:{p}"],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for p in ports]
+    try:
+        for p in ports:
+            with grpc.insecure_channel(f"127.0.0.1:{p}") as c:
+                grpc.channel_ready_future(c).result(timeout=60)
+        request = mvgrasp_client.plan_request(
+            pb, os.path.join(ROOT, "samples/table6/depth.png"), os.path.join(ROOT, "samples/table6/camera.json"))
+        addresses = ",".join(f"127.0.0.1:{p}" for p in ports)
+        stop_at = time.monotonic() + 9
+        killed = threading.Event()
+        tally = {"answered": 0, "after_kill": 0, "errors": []}
+        lock = threading.Lock()
+
+        def caller():
+            # One channel per robot: its own connections and round robin.
+            with mvgrasp_client.channel(addresses) as chan:
+                planner = rpc.GraspPlannerStub(chan)
+                while time.monotonic() < stop_at:
+                    try:
+                        answer = planner.PlanGrasps(request, timeout=30)
+                        with lock:
+                            tally["answered"] += 1
+                            tally["after_kill"] += killed.is_set() and len(answer.objects) == 6
+                    except grpc.RpcError as e:
+                        with lock:
+                            tally["errors"].append(f"{e.code()} {e.details()}")
+
+        threads = [threading.Thread(target=caller) for _ in range(16)]
+        for t in threads:
+            t.start()
+        time.sleep(3)
+        replicas[1].kill()
+        replicas[1].wait()
+        killed.set()
+        time.sleep(2)
+        replicas[2].send_signal(signal.SIGTERM)  # drains and closes; calls racing it go on
+        replicas[2].wait(timeout=30)
+        for t in threads:
+            t.join()
+        print(f"     replicas: {tally['answered']} answered, {tally['after_kill']} after the kill, "
+              f"{len(tally['errors'])} lost")
+        check("no call lost when a replica dies", not tally["errors"], str(tally["errors"][:5]))
+        check("calls go on on those left", tally["after_kill"] >= 16, str(tally["after_kill"]))
+    finally:
+        for r in replicas:
+            r.kill()
+            r.wait()
 
 
 def main():
@@ -112,6 +168,7 @@ def main():
             server.kill()
             code = None
         check("server stops on SIGTERM", code == 0, f"exit {code}; log:\n{server.stdout.read()}")
+    check_replicas(server_bin, pb, rpc)
     print(f"python_client: {results['passed']} passed, {results['failed']} failed")
     return 1 if results["failed"] else 0
 

@@ -1,6 +1,9 @@
 //! `mvgrasp-client`: a typed async client of the mvgrasp planner, the loaders
 //! the `mvgrasp` CLI uses (depth PNG + camera JSON, PLY / PCD clouds), grasp
-//! drawings, and the load generator behind `mvgrasp bench`.
+//! drawings, and the load generator behind `mvgrasp bench`. One client
+//! spreads calls over several planner replicas (`"http://a:50051,http://b:50051"`
+//! or `"dns:///planner:50051"`) and sends a call that met an unavailable
+//! replica on to the others ([`replicas`]).
 //!
 //! ```no_run
 //! # async fn demo() -> Result<(), mvgrasp_client::Error> {
@@ -16,15 +19,21 @@
 
 pub mod bench;
 pub mod cloud;
+pub mod replicas;
 pub mod request;
 pub mod scene;
 pub mod viz;
 
-use std::time::Duration;
+use std::{
+    sync::Arc,
+    time::{Duration, Instant},
+};
 
 use futures_util::Stream;
 pub use mvgrasp_proto::v1 as pb;
 use pb::grasp_planner_client::GraspPlannerClient;
+pub use replicas::ReplicaStats;
+use replicas::RoundRobin;
 use tonic::transport::{Channel, Endpoint};
 use tonic_health::pb::{
     HealthCheckRequest, health_check_response::ServingStatus, health_client::HealthClient,
@@ -60,84 +69,284 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 /// Largest response accepted (debug views can be large).
 const MAX_RESPONSE_BYTES: usize = 256 << 20;
 
-/// A connection to one planner; cheap to clone (clones share the connection).
+/// One planner replica's stubs (clones share its connection).
 #[derive(Debug, Clone)]
-pub struct PlannerClient {
+struct Stubs {
     planner: GraspPlannerClient<Channel>,
     health: HealthClient<Channel>,
-    timeout: Option<Duration>,
 }
 
-impl PlannerClient {
-    /// Connects to `endpoint` (e.g. `http://127.0.0.1:50051`), failing after 5 s.
-    pub async fn connect(endpoint: &str) -> Result<Self> {
-        let connect_error = |reason: String| Error::Connect {
-            endpoint: endpoint.to_owned(),
-            reason,
-        };
-        let channel = Endpoint::from_shared(endpoint.to_owned())
-            .map_err(|e| connect_error(e.to_string()))?
-            .connect_timeout(Duration::from_secs(5))
-            .tcp_nodelay(true)
-            .initial_stream_window_size(8 << 20)
-            .initial_connection_window_size(16 << 20)
-            .connect()
-            .await
-            .map_err(|e| connect_error(format!("{e} ({:?})", std::error::Error::source(&e))))?;
-        Ok(Self::from_channel(channel))
-    }
-
-    /// A client over an existing channel.
-    pub fn from_channel(channel: Channel) -> Self {
+impl Stubs {
+    fn new(channel: Channel) -> Self {
         Self {
             planner: GraspPlannerClient::new(channel.clone())
                 .max_decoding_message_size(MAX_RESPONSE_BYTES)
                 .max_encoding_message_size(usize::MAX),
             health: HealthClient::new(channel),
+        }
+    }
+}
+
+#[derive(Debug)]
+struct Pool {
+    endpoints: Vec<String>,
+    stubs: Vec<Stubs>,
+    turns: RoundRobin,
+}
+
+/// A connection to the planner: one replica, or several with calls spread
+/// round robin (see [`replicas`]); cheap to clone (clones share the
+/// connections and the turn order).
+#[derive(Debug, Clone)]
+pub struct PlannerClient {
+    pool: Arc<Pool>,
+    timeout: Option<Duration>,
+}
+
+fn endpoint(address: &str) -> Result<Endpoint> {
+    Ok(Endpoint::from_shared(address.to_owned())
+        .map_err(|e| Error::Connect {
+            endpoint: address.to_owned(),
+            reason: e.to_string(),
+        })?
+        .connect_timeout(Duration::from_secs(5))
+        .tcp_nodelay(true)
+        .initial_stream_window_size(8 << 20)
+        .initial_connection_window_size(16 << 20))
+}
+
+/// Whether a failed call may be sent again to another replica: the replica
+/// could not be reached or refused it while shutting down (UNAVAILABLE), or
+/// its connection broke or closed under the call (tonic reports UNKNOWN or
+/// CANCELLED with the transport error as the source). `PlanGrasps` and the
+/// other unary calls are idempotent, so a call the lost replica may have
+/// finished is safe to send again.
+fn retryable(status: &tonic::Status) -> bool {
+    match status.code() {
+        tonic::Code::Unavailable => true,
+        tonic::Code::Unknown | tonic::Code::Cancelled => std::error::Error::source(status)
+            .is_some_and(|e| e.downcast_ref::<tonic::transport::Error>().is_some()),
+        _ => false,
+    }
+}
+
+impl PlannerClient {
+    /// Connects to the planner at `endpoints`: one address
+    /// (`http://127.0.0.1:50051`), several separated by commas, or
+    /// `dns:///host:port` for every address the name resolves to; fails
+    /// after 5 s when none can be reached. Replicas that cannot be reached
+    /// now are tried again later.
+    pub async fn connect(endpoints: &str) -> Result<Self> {
+        Self::connect_all(&replicas::endpoints(endpoints).await?).await
+    }
+
+    /// Connects to each of `endpoints` (one replica each).
+    pub async fn connect_all(endpoints: &[String]) -> Result<Self> {
+        let endpoints: Vec<Endpoint> = endpoints.iter().map(|a| endpoint(a)).collect::<Result<_>>()?;
+        let attempts = futures_util::future::join_all(endpoints.iter().map(Endpoint::connect)).await;
+        let mut reasons = Vec::new();
+        let mut down = Vec::new();
+        let mut stubs = Vec::new();
+        for (i, (e, attempt)) in endpoints.iter().zip(attempts).enumerate() {
+            let channel = match attempt {
+                Ok(channel) => channel,
+                Err(err) => {
+                    reasons.push(format!(
+                        "{}: {err} ({:?})",
+                        e.uri(),
+                        std::error::Error::source(&err)
+                    ));
+                    down.push(i);
+                    e.connect_lazy()
+                }
+            };
+            stubs.push(Stubs::new(channel));
+        }
+        let names: Vec<String> = endpoints.iter().map(|e| e.uri().to_string()).collect();
+        if stubs.is_empty() || down.len() == stubs.len() {
+            return Err(Error::Connect {
+                endpoint: names.join(","),
+                reason: reasons.join("; "),
+            });
+        }
+        for reason in &reasons {
+            tracing::warn!(%reason, "planner replica unreachable; calls go to the others");
+        }
+        Ok(Self {
+            pool: Arc::new(Pool {
+                turns: RoundRobin::new(stubs.len(), &down),
+                endpoints: names,
+                stubs,
+            }),
+            timeout: None,
+        })
+    }
+
+    /// A client over an existing channel (one replica).
+    pub fn from_channel(channel: Channel) -> Self {
+        Self {
+            pool: Arc::new(Pool {
+                endpoints: vec!["channel".to_owned()],
+                stubs: vec![Stubs::new(channel)],
+                turns: RoundRobin::new(1, &[]),
+            }),
             timeout: None,
         }
     }
 
-    /// Sends a deadline (`grpc-timeout`) with every call.
+    /// Sends a deadline (`grpc-timeout`) with every call; a retry gets what
+    /// is left of it.
     pub fn with_timeout(mut self, timeout: Duration) -> Self {
         self.timeout = Some(timeout);
         self
     }
 
-    fn request<T>(&self, message: T) -> tonic::Request<T> {
+    /// What each replica has done so far.
+    pub fn replicas(&self) -> Vec<ReplicaStats> {
+        self.pool.turns.stats(&self.pool.endpoints)
+    }
+
+    /// Calls sent a second time because the first replica was unavailable.
+    pub fn retries(&self) -> u64 {
+        self.pool.turns.retries()
+    }
+
+    fn request<T>(message: T, timeout: Option<Duration>) -> tonic::Request<T> {
         let mut request = tonic::Request::new(message);
-        if let Some(t) = self.timeout {
+        if let Some(t) = timeout {
             request.set_timeout(t);
         }
         request
     }
 
-    /// Plans grasps for one frame.
-    pub async fn plan(&mut self, request: pb::PlanGraspsRequest) -> Result<pb::PlanGraspsResponse> {
-        let request = self.request(request);
-        Ok(self.planner.plan_grasps(request).await?.into_inner())
+    /// Sends `message` through `call` to the next replica; while the answer
+    /// is UNAVAILABLE (or a broken connection), to the other replicas in
+    /// turn, each once, within the deadline. Two replicas can fail at once
+    /// and one client learns of each failure only by meeting it, so one
+    /// retry is not enough for no call to be lost.
+    async fn unary<M, R, F, Fut>(&self, message: M, call: F) -> Result<R>
+    where
+        M: Clone,
+        F: Fn(Stubs, tonic::Request<M>) -> Fut,
+        Fut: Future<Output = Result<tonic::Response<R>, tonic::Status>>,
+    {
+        let turns = &self.pool.turns;
+        let mut replica = turns.pick();
+        if turns.len() == 1 {
+            let answer = call(
+                self.pool.stubs[replica].clone(),
+                Self::request(message, self.timeout),
+            )
+            .await;
+            return match answer {
+                Ok(response) => Ok(response.into_inner()),
+                Err(status) => Err(status.into()),
+            };
+        }
+        let started = Instant::now();
+        let mut tried = vec![false; turns.len()];
+        let mut timeout = self.timeout;
+        loop {
+            tried[replica] = true;
+            let answer = call(
+                self.pool.stubs[replica].clone(),
+                Self::request(message.clone(), timeout),
+            )
+            .await;
+            let status = match answer {
+                Ok(response) => {
+                    turns.mark_answered(replica);
+                    return Ok(response.into_inner());
+                }
+                Err(status) => status,
+            };
+            if !retryable(&status) {
+                turns.mark_answered(replica);
+                return Err(status.into());
+            }
+            turns.mark_unavailable(replica);
+            if let Some(t) = self.timeout {
+                match t.checked_sub(started.elapsed()) {
+                    Some(left) if !left.is_zero() => timeout = Some(left),
+                    _ => return Err(status.into()),
+                }
+            }
+            let Some(next) = turns.pick_untried(&tried) else {
+                return Err(status.into());
+            };
+            turns.count_retry();
+            tracing::debug!(from = %self.pool.endpoints[replica], to = %self.pool.endpoints[next], %status, "retrying on another replica");
+            replica = next;
+        }
     }
 
-    /// Plans a stream of frames; answers come back in order.
+    /// Plans grasps for one frame.
+    pub async fn plan(&mut self, request: pb::PlanGraspsRequest) -> Result<pb::PlanGraspsResponse> {
+        self.unary(request, |mut s, r| async move { s.planner.plan_grasps(r).await })
+            .await
+    }
+
+    /// Plans a stream of frames on one replica (the next in turn); answers
+    /// come back in order. A stream is not retried elsewhere.
     pub async fn stream(
         &mut self,
         requests: impl Stream<Item = pb::PlanGraspsRequest> + Send + 'static,
     ) -> Result<tonic::Streaming<pb::PlanGraspsResponse>> {
-        Ok(self.planner.stream_grasps(requests).await?.into_inner())
+        let turns = &self.pool.turns;
+        let i = turns.pick();
+        let mut stubs = self.pool.stubs[i].clone();
+        match stubs.planner.stream_grasps(requests).await {
+            Ok(response) => {
+                turns.mark_answered(i);
+                Ok(response.into_inner())
+            }
+            Err(status) => {
+                if retryable(&status) {
+                    turns.mark_unavailable(i);
+                }
+                Err(status.into())
+            }
+        }
     }
 
     /// The loaded model's contract and backend.
     pub async fn model_info(&mut self) -> Result<pb::ModelInfo> {
-        let request = self.request(pb::GetModelInfoRequest {});
-        Ok(self.planner.get_model_info(request).await?.into_inner())
+        self.unary(pb::GetModelInfoRequest {}, |mut s, r| async move {
+            s.planner.get_model_info(r).await
+        })
+        .await
     }
 
-    /// The standard gRPC health status of the planner service.
+    /// The standard gRPC health status of the planner service (of the
+    /// replica that answered).
     pub async fn health(&mut self) -> Result<ServingStatus> {
-        let request = self.request(HealthCheckRequest {
+        let ask = HealthCheckRequest {
             service: "mvgrasp.v1.GraspPlanner".to_owned(),
-        });
-        let status = self.health.check(request).await?.into_inner().status;
+        };
+        let status = self
+            .unary(ask, |mut s, r| async move { s.health.check(r).await })
+            .await?
+            .status;
         Ok(ServingStatus::try_from(status).unwrap_or(ServingStatus::Unknown))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_unavailable_and_broken_connections_are_retried() {
+        assert!(retryable(&tonic::Status::unavailable("shutting down")));
+        for code in [
+            tonic::Code::InvalidArgument,
+            tonic::Code::DeadlineExceeded,
+            tonic::Code::ResourceExhausted,
+            tonic::Code::Internal,
+            tonic::Code::Unknown,
+            tonic::Code::Cancelled,
+        ] {
+            assert!(!retryable(&tonic::Status::new(code, "refused")), "{code:?}");
+        }
     }
 }

@@ -18,7 +18,9 @@ use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 #[derive(Debug, Parser)]
 #[command(version, about)]
 struct Cli {
-    /// The planner's address.
+    /// The planner: one address, several separated by commas (calls go
+    /// round robin, a call that meets an unavailable replica goes on to the
+    /// others), or `dns:///host:port` for every address the name has.
     #[arg(
         long,
         global = true,
@@ -360,6 +362,19 @@ async fn main() -> anyhow::Result<()> {
             }
             if let Some(e) = report.first_error {
                 eprintln!("first error: {e}");
+            }
+            let replicas = client.replicas();
+            if replicas.len() > 1 {
+                for r in replicas {
+                    eprintln!(
+                        "replica {}: {} answered, {} unavailable{}",
+                        r.endpoint,
+                        r.answered,
+                        r.unavailable,
+                        if r.down { " (sitting out)" } else { "" }
+                    );
+                }
+                eprintln!("{} calls retried on another replica", client.retries());
             }
         }
         Command::Info => {
