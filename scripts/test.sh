@@ -44,6 +44,16 @@ if ! PYTHONPATH="$pydeps" python3 -c "import grpc, grpc_tools" >/dev/null 2>&1; 
 fi
 cargo build --quiet -p mvgrasp-server --bin mvgrasp-server
 PYTHONPATH="$pydeps" python3 client/python/test_client.py target/debug/mvgrasp-server "$MVGRASP_ONNXRUNTIME"
+echo "== monitoring: alert rules (promtool), the Grafana dashboard's metrics on a live /metrics, a real Prometheus scraping a loaded server"
+if ! command -v promtool >/dev/null 2>&1; then
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get install -y -q --no-install-recommends prometheus >/dev/null \
+        || { apt-get update -q >/dev/null && apt-get install -y -q --no-install-recommends prometheus >/dev/null; }
+fi
+promtool check config deploy/prometheus/prometheus.yml
+promtool test rules deploy/prometheus/rules_test.yml
+cargo build --quiet -p mvgrasp-client --bin mvgrasp
+python3 deploy/check_monitoring.py target/debug/mvgrasp-server target/debug/mvgrasp
 echo "== physics referee (MuJoCo, robosuite's UR5e + 2F-140, objects from PyPI wheels): self-checks, then the quick suite against a server"
 export MVGRASP_ROBOT_BRIDGE=target/debug/robot-bridge
 scripts/referee.sh --self-check

@@ -47,11 +47,24 @@ pub struct Metrics {
     pub grasps_turned_away: IntCounter,
     /// Grasps dropped because their approach lay outside the request's cone.
     pub grasps_outside_approach_cone: IntCounter,
+    /// Candidate grasps refused per object, by cause (`table`, `neighbour`,
+    /// `own_points`, `outside_approach_cone`), as in the answer's `refused`.
+    pub candidates_refused: IntCounterVec,
     /// Queued work dropped before inference, by reason.
     pub dropped: IntCounterVec,
+    /// Views the queue takes before calls are refused (the setting).
+    pub queued_views_limit: IntGauge,
+    /// Calls served at once before more are refused (the setting).
+    pub in_flight_limit: IntGauge,
     /// 1, labelled with the loaded model and backend.
     pub model_info: IntGaugeVec,
 }
+
+/// The `cause` label values of `mvgrasp_grasp_candidates_refused_total`.
+pub const REFUSAL_CAUSES: [&str; 4] = ["table", "neighbour", "own_points", "outside_approach_cone"];
+
+/// The `reason` label values of `mvgrasp_dropped_views_total`.
+pub const DROP_REASONS: [&str; 3] = ["queue_full", "caller_gone", "deadline"];
 
 fn metric_error(e: prometheus::Error) -> Error {
     Error::Startup(format!("metrics: {e}"))
@@ -126,9 +139,27 @@ impl Metrics {
                 "Grasps dropped before ranking because their approach lay outside the request's approach cone",
             )
             .map_err(metric_error)?,
+            candidates_refused: IntCounterVec::new(
+                Opts::new(
+                    "grasp_candidates_refused_total",
+                    "Candidate grasps refused per object, by cause (as in the answer's refused)",
+                ),
+                &["cause"],
+            )
+            .map_err(metric_error)?,
             dropped: IntCounterVec::new(
                 Opts::new("dropped_views_total", "Queued views dropped before inference"),
                 &["reason"],
+            )
+            .map_err(metric_error)?,
+            queued_views_limit: IntGauge::new(
+                "queued_views_limit",
+                "Views the queue takes before calls are refused",
+            )
+            .map_err(metric_error)?,
+            in_flight_limit: IntGauge::new(
+                "in_flight_requests_limit",
+                "Calls served at once before more are refused",
             )
             .map_err(metric_error)?,
             model_info: IntGaugeVec::new(
@@ -138,7 +169,7 @@ impl Metrics {
             .map_err(metric_error)?,
             registry,
         };
-        let collectors: [Box<dyn prometheus::core::Collector>; 16] = [
+        let collectors: [Box<dyn prometheus::core::Collector>; 19] = [
             Box::new(m.requests.clone()),
             Box::new(m.request_seconds.clone()),
             Box::new(m.stage_seconds.clone()),
@@ -153,11 +184,26 @@ impl Metrics {
             Box::new(m.grasps_turned_square.clone()),
             Box::new(m.grasps_turned_away.clone()),
             Box::new(m.grasps_outside_approach_cone.clone()),
+            Box::new(m.candidates_refused.clone()),
             Box::new(m.dropped.clone()),
+            Box::new(m.queued_views_limit.clone()),
+            Box::new(m.in_flight_limit.clone()),
             Box::new(m.model_info.clone()),
         ];
         for c in collectors {
             m.registry.register(c).map_err(metric_error)?;
+        }
+        // Every label value at 0 from the start: a series that appears only
+        // after its first event breaks rates and dashboards until then.
+        for cause in REFUSAL_CAUSES {
+            m.candidates_refused.with_label_values(&[cause]);
+        }
+        for reason in DROP_REASONS {
+            m.dropped.with_label_values(&[reason]);
+        }
+        for method in ["PlanGrasps", "StreamGrasps", "GetModelInfo"] {
+            m.requests.with_label_values(&[method, "Ok"]);
+            m.request_seconds.with_label_values(&[method]);
         }
         Ok(m)
     }

@@ -57,6 +57,8 @@ impl PlannerState {
             max_wait: Duration::from_secs_f64(settings.batching.max_wait_ms / 1e3),
             max_queued_views: settings.batching.max_queued_views,
         };
+        metrics.queued_views_limit.set(limits.max_queued_views as i64);
+        metrics.in_flight_limit.set(settings.limits.max_in_flight as i64);
         let batcher = Batcher::spawn(net.net, limits, Arc::clone(&metrics))?;
         let cpu = Arc::new(Semaphore::new(settings.cpu_workers()));
         Ok(Self {
@@ -191,6 +193,21 @@ impl PlannerState {
         self.metrics
             .grasps_outside_approach_cone
             .inc_by(plan.outside_approach_cone as u64);
+        let refused = plan.objects.iter().fold([0; 4], |sum, o| {
+            let r = &o.refused;
+            [
+                sum[0] + r.table,
+                sum[1] + r.neighbour,
+                sum[2] + r.own_points,
+                sum[3] + r.outside_approach_cone,
+            ]
+        });
+        for (cause, n) in crate::metrics::REFUSAL_CAUSES.iter().zip(refused) {
+            self.metrics
+                .candidates_refused
+                .with_label_values(&[cause])
+                .inc_by(n as u64);
+        }
     }
 
     fn observe_call(&self, method: &str, started: Instant, code: Code) {

@@ -56,8 +56,18 @@ async fn health_reflection_and_metrics() {
     assert!(names.contains(&"grpc.health.v1.Health".to_owned()), "{names:?}");
 
     let mut inferred_views = 0;
+    let mut refused = [0u32; 4];
     for _ in 0..3 {
         let response = client.plan(frame()).await.unwrap();
+        for r in response.objects.iter().filter_map(|o| o.refused.as_ref()) {
+            for (sum, n) in
+                refused
+                    .iter_mut()
+                    .zip([r.table, r.neighbour, r.own_points, r.outside_approach_cone])
+            {
+                *sum += n;
+            }
+        }
         inferred_views += response
             .objects
             .iter()
@@ -97,6 +107,29 @@ async fn health_reflection_and_metrics() {
     );
     assert!(metrics.contains("mvgrasp_model_info{backend=\"onnxruntime-cpu\""));
     assert_eq!(sample(&metrics, "mvgrasp_queued_views"), 0.0);
+    // The answers' per-object refusals, summed by cause.
+    for (cause, n) in ["table", "neighbour", "own_points", "outside_approach_cone"]
+        .iter()
+        .zip(refused)
+    {
+        let name = format!("mvgrasp_grasp_candidates_refused_total{{cause=\"{cause}\"}}");
+        assert_eq!(sample(&metrics, &name), f64::from(n), "{cause}");
+    }
+    assert!(refused.iter().sum::<u32>() > 0, "{refused:?}");
+    // Limits are exported for the alerts; label values exist before their first event.
+    assert_eq!(sample(&metrics, "mvgrasp_queued_views_limit"), 2048.0);
+    assert!(sample(&metrics, "mvgrasp_in_flight_requests_limit") > 0.0);
+    assert_eq!(
+        sample(&metrics, "mvgrasp_dropped_views_total{reason=\"queue_full\"}"),
+        0.0
+    );
+    assert_eq!(
+        sample(
+            &metrics,
+            "mvgrasp_requests_total{code=\"Ok\",method=\"StreamGrasps\"}"
+        ),
+        0.0
+    );
     server.shutdown().await.unwrap();
 }
 
