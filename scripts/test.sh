@@ -54,6 +54,13 @@ promtool check config deploy/prometheus/prometheus.yml
 promtool test rules deploy/prometheus/rules_test.yml
 cargo build --quiet -p mvgrasp-client --bin mvgrasp
 python3 deploy/check_monitoring.py target/debug/mvgrasp-server target/debug/mvgrasp
+echo "== Kubernetes manifests (no cluster here): kubectl kustomize, kubernetes-validate --strict, how the objects fit together, checkov"
+k8sdeps=target/pydeps-k8s
+if ! PYTHONPATH="$k8sdeps" python3 -c "import kubernetes_validate, checkov, yaml" >/dev/null 2>&1; then
+    python3 -m pip install --quiet --disable-pip-version-check --target "$k8sdeps" -r deploy/k8s/requirements-check.txt 2>&1 \
+        | grep -v -e "dependency resolver" -e "which is incompatible" || true
+fi
+PYTHONPATH="$k8sdeps" python3 deploy/k8s/check.py
 echo "== physics referee (MuJoCo, robosuite's UR5e + 2F-140, objects from PyPI wheels): self-checks, then the quick suite against a server"
 export MVGRASP_ROBOT_BRIDGE=target/debug/robot-bridge
 scripts/referee.sh --self-check
