@@ -54,6 +54,13 @@ promtool check config deploy/prometheus/prometheus.yml
 promtool test rules deploy/prometheus/rules_test.yml
 cargo build --quiet -p mvgrasp-client --bin mvgrasp
 python3 deploy/check_monitoring.py target/debug/mvgrasp-server target/debug/mvgrasp
+echo "== container image (OCI archive from Debian's libraries, no base image pulled), smoke-tested with chroot: health, the sample frame, SIGTERM"
+python3 deploy/image/build.py build --server target/debug/mvgrasp-server --out target/image-ci
+if [[ $EUID -eq 0 ]]; then
+    python3 deploy/image/build.py smoke --image target/image-ci/mvgrasp-server.oci.tar --client target/debug/mvgrasp
+else
+    echo "image smoke test NOT RUN: chroot needs root"
+fi
 echo "== Kubernetes manifests (no cluster here): kubectl kustomize, kubernetes-validate --strict, how the objects fit together, checkov"
 k8sdeps=target/pydeps-k8s
 if ! PYTHONPATH="$k8sdeps" python3 -c "import kubernetes_validate, checkov, yaml" >/dev/null 2>&1; then
