@@ -157,8 +157,14 @@ def target(server):
     return "ipv4:" + ",".join(addresses)
 
 
-def channel(server):
-    """An insecure channel to one planner or several replicas (see `target`)."""
+def channel(server, ca=None, cert=None, key=None, domain=None, token=None):
+    """A channel to one planner or several replicas (see `target`).
+
+    `ca` (PEM bytes of the CA that signed the planner's certificate) makes it
+    TLS; `cert` and `key` add this client's certificate (mutual TLS);
+    `domain` is the name on the planner's certificate when the address does
+    not carry it; `token` is sent as `authorization: Bearer <token>`.
+    """
     import grpc  # noqa: PLC0415
 
     name = target(server)
@@ -172,7 +178,38 @@ def channel(server):
     if name.startswith("ipv4:"):
         # The default :authority would be the whole list, which HTTP/2 servers refuse.
         options.append(("grpc.default_authority", name[len("ipv4:"):].split(",")[0]))
-    return grpc.insecure_channel(name, options=options)
+    if domain:
+        options.append(("grpc.ssl_target_name_override", domain))
+    if ca is not None:
+        credentials = grpc.ssl_channel_credentials(root_certificates=ca, private_key=key, certificate_chain=cert)
+        chan = grpc.secure_channel(name, credentials, options=options)
+    else:
+        chan = grpc.insecure_channel(name, options=options)
+    if token:
+        chan = grpc.intercept_channel(chan, _bearer(token))
+    return chan
+
+
+def _bearer(token):
+    """A client interceptor adding `authorization: Bearer <token>` to every call."""
+    import grpc  # noqa: PLC0415
+
+    header = ("authorization", f"Bearer {token}")
+
+    class Details(grpc.ClientCallDetails):
+        def __init__(self, d):
+            self.method, self.timeout, self.credentials = d.method, d.timeout, d.credentials
+            self.wait_for_ready, self.compression = d.wait_for_ready, d.compression
+            self.metadata = list(d.metadata or []) + [header]
+
+    class Bearer(grpc.UnaryUnaryClientInterceptor, grpc.StreamStreamClientInterceptor):
+        def intercept_unary_unary(self, continuation, details, request):
+            return continuation(Details(details), request)
+
+        def intercept_stream_stream(self, continuation, details, requests):
+            return continuation(Details(details), requests)
+
+    return Bearer()
 
 
 def approach(q):
@@ -194,10 +231,23 @@ def main():
                         help="only approaches within this cone, e.g. 0 0 -1 60 (from above within 60 degrees)")
     parser.add_argument("--no-view-cascade", action="store_true",
                         help="the paper's single pass over the policy's views")
+    parser.add_argument("--tls-ca", help="PEM CA that signed the planner's certificate: call over TLS")
+    parser.add_argument("--tls-cert", help="PEM certificate of this client (mutual TLS)")
+    parser.add_argument("--tls-key", help="PEM key of --tls-cert")
+    parser.add_argument("--tls-domain", help="the name on the planner's certificate, if the address differs")
+    parser.add_argument("--token-file", help="file with the bearer token the planner asks for")
     args = parser.parse_args()
 
+    def read(path):
+        if path is None:
+            return None
+        with open(path, "rb") as f:
+            return f.read()
+
     pb, rpc = stubs()
-    with channel(args.server) as chan:
+    token = read(args.token_file).decode().strip() if args.token_file else None
+    with channel(args.server, ca=read(args.tls_ca), cert=read(args.tls_cert), key=read(args.tls_key),
+                 domain=args.tls_domain, token=token) as chan:
         planner = rpc.GraspPlannerStub(chan)
         info = planner.GetModelInfo(pb.GetModelInfoRequest(), timeout=args.timeout_s)
         print(f"model {info.model_version} on {info.backend}, views {info.input_size_px} px")

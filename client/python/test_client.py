@@ -6,7 +6,9 @@ Starts the server (tiny fixture model, ONNX Runtime CPU) on a free port, plans
 on samples/table6 from Python, checks the response contract and a bad request,
 then stops the server with SIGTERM. Then three replicas (analytic backend)
 behind one comma-separated address, 16 callers, one replica killed mid-run
-and a second stopped later: no call may be lost. Needs grpcio + grpcio-tools on sys.path.
+and a second stopped later: no call may be lost. Then mutual TLS and a
+bearer token (certificates made with openssl). Needs grpcio + grpcio-tools
+on sys.path.
 """
 
 import math
@@ -93,6 +95,72 @@ def check_replicas(server_bin, pb, rpc):
             r.wait()
 
 
+def make_certificates(folder):
+    """A CA, a server certificate for 127.0.0.1 and a client certificate (openssl)."""
+    def run(*args):
+        subprocess.run(["openssl", *args], check=True, capture_output=True, cwd=folder)
+
+    ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:P-256", "-nodes"]
+    run("req", "-x509", *ec, "-keyout", "ca.key", "-out", "ca.crt", "-days", "2", "-subj", "/CN=fleet-ca")
+    for name, ext in (("server", "subjectAltName=DNS:localhost,IP:127.0.0.1\nextendedKeyUsage=serverAuth"),
+                      ("robot", "subjectAltName=DNS:robot-1\nextendedKeyUsage=clientAuth")):
+        with open(os.path.join(folder, f"{name}.ext"), "w") as f:
+            f.write(ext)
+        run("req", *ec, "-keyout", f"{name}.key", "-out", f"{name}.csr", "-subj", f"/CN={name}")
+        run("x509", "-req", "-in", f"{name}.csr", "-CA", "ca.crt", "-CAkey", "ca.key", "-CAcreateserial",
+            "-out", f"{name}.crt", "-days", "2", "-extfile", f"{name}.ext")
+
+    def read(name):
+        with open(os.path.join(folder, name), "rb") as f:
+            return f.read()
+
+    return read
+
+
+def check_security(server_bin, pb, rpc):
+    """Mutual TLS and a bearer token: only the fleet's robot with the token plans."""
+    import tempfile  # noqa: PLC0415
+
+    folder = tempfile.mkdtemp(prefix="mvgrasp-tls-")
+    read = make_certificates(folder)
+    with open(os.path.join(folder, "token"), "w") as f:
+        f.write("fleet-7f3a9c\n")
+    port = free_port()
+    server = subprocess.Popen(
+        [server_bin, "--backend", "baseline", "--no-metrics", "--listen", f"127.0.0.1:{port}",
+         "--tls-cert", os.path.join(folder, "server.crt"), "--tls-key", os.path.join(folder, "server.key"),
+         "--tls-client-ca", os.path.join(folder, "ca.crt"), "--bearer-token-file", os.path.join(folder, "token")],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    request = mvgrasp_client.plan_request(
+        pb, os.path.join(ROOT, "samples/table6/depth.png"), os.path.join(ROOT, "samples/table6/camera.json"))
+    address = f"127.0.0.1:{port}"
+    robot = {"ca": read("ca.crt"), "cert": read("robot.crt"), "key": read("robot.key")}
+
+    def plan(**credentials):
+        with mvgrasp_client.channel(address, **credentials) as chan:
+            try:
+                return len(rpc.GraspPlannerStub(chan).PlanGrasps(request, timeout=30, wait_for_ready=False).objects)
+            except grpc.RpcError as e:
+                return e.code()
+
+    try:
+        deadline = time.monotonic() + 60
+        while plan(**robot, token="fleet-7f3a9c") != 6 and time.monotonic() < deadline:
+            time.sleep(0.3)
+        check("TLS: the robot with its certificate and the token plans", plan(**robot, token="fleet-7f3a9c") == 6)
+        answer = plan(**robot)
+        check("no token: UNAUTHENTICATED", answer == grpc.StatusCode.UNAUTHENTICATED, str(answer))
+        answer = plan(**robot, token="fleet-0000")
+        check("wrong token: UNAUTHENTICATED", answer == grpc.StatusCode.UNAUTHENTICATED, str(answer))
+        answer = plan(ca=read("ca.crt"), token="fleet-7f3a9c")
+        check("no client certificate: refused", answer == grpc.StatusCode.UNAVAILABLE, str(answer))
+        answer = plan(token="fleet-7f3a9c")
+        check("plaintext to the TLS port: refused", answer == grpc.StatusCode.UNAVAILABLE, str(answer))
+    finally:
+        server.kill()
+        server.wait()
+
+
 def main():
     server_bin, ort_lib = sys.argv[1], sys.argv[2]
     port = free_port()
@@ -169,6 +237,7 @@ def main():
             code = None
         check("server stops on SIGTERM", code == 0, f"exit {code}; log:\n{server.stdout.read()}")
     check_replicas(server_bin, pb, rpc)
+    check_security(server_bin, pb, rpc)
     print(f"python_client: {results['passed']} passed, {results['failed']} failed")
     return 1 if results["failed"] else 0
 

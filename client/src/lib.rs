@@ -34,7 +34,10 @@ pub use mvgrasp_proto::v1 as pb;
 use pb::grasp_planner_client::GraspPlannerClient;
 pub use replicas::ReplicaStats;
 use replicas::RoundRobin;
-use tonic::transport::{Channel, Endpoint};
+use tonic::{
+    metadata::AsciiMetadataValue,
+    transport::{Certificate, Channel, ClientTlsConfig, Endpoint, Identity},
+};
 use tonic_health::pb::{
     HealthCheckRequest, health_check_response::ServingStatus, health_client::HealthClient,
 };
@@ -92,6 +95,8 @@ struct Pool {
     endpoints: Vec<String>,
     stubs: Vec<Stubs>,
     turns: RoundRobin,
+    /// `Bearer <token>`, sent with every call.
+    authorization: Option<AsciiMetadataValue>,
 }
 
 /// A connection to the planner: one replica, or several with calls spread
@@ -103,16 +108,95 @@ pub struct PlannerClient {
     timeout: Option<Duration>,
 }
 
-fn endpoint(address: &str) -> Result<Endpoint> {
-    Ok(Endpoint::from_shared(address.to_owned())
-        .map_err(|e| Error::Connect {
-            endpoint: address.to_owned(),
-            reason: e.to_string(),
-        })?
+/// What a planner that asks for credentials needs (all optional: by default
+/// plaintext and no token).
+#[derive(Debug, Clone, Default)]
+pub struct Credentials {
+    /// PEM CA that signed the planner's certificate: calls go over TLS
+    /// (`http://` addresses are taken as `https://`).
+    pub tls_ca_pem: Option<Vec<u8>>,
+    /// PEM certificate and key of this client, for mutual TLS.
+    pub tls_identity_pem: Option<(Vec<u8>, Vec<u8>)>,
+    /// The name the planner's certificate carries, when the address does
+    /// not (e.g. an IP address from `dns:///`).
+    pub tls_domain: Option<String>,
+    /// Sent as `authorization: Bearer <token>` with every call.
+    pub bearer_token: Option<String>,
+}
+
+impl Credentials {
+    /// Credentials from files: CA, client certificate + key, token (each optional).
+    pub fn from_files(
+        ca: Option<&std::path::Path>,
+        identity: Option<(&std::path::Path, &std::path::Path)>,
+        domain: Option<String>,
+        token: Option<&std::path::Path>,
+    ) -> Result<Self> {
+        let read = |path: &std::path::Path| {
+            std::fs::read(path).map_err(|e| Error::Input {
+                file: path.display().to_string(),
+                reason: e.to_string(),
+            })
+        };
+        let bearer_token = match token {
+            Some(path) => Some(
+                String::from_utf8(read(path)?)
+                    .map_err(|_| Error::Input {
+                        file: path.display().to_string(),
+                        reason: "not UTF-8".into(),
+                    })?
+                    .trim()
+                    .to_owned(),
+            ),
+            None => None,
+        };
+        Ok(Self {
+            tls_ca_pem: ca.map(read).transpose()?,
+            tls_identity_pem: match identity {
+                Some((cert, key)) => Some((read(cert)?, read(key)?)),
+                None => None,
+            },
+            tls_domain: domain,
+            bearer_token,
+        })
+    }
+
+    fn uses_tls(&self) -> bool {
+        self.tls_ca_pem.is_some() || self.tls_identity_pem.is_some()
+    }
+}
+
+fn endpoint(address: &str, credentials: &Credentials) -> Result<Endpoint> {
+    let error = |reason: String| Error::Connect {
+        endpoint: address.to_owned(),
+        reason,
+    };
+    let address = match address.strip_prefix("http://") {
+        Some(rest) if credentials.uses_tls() => format!("https://{rest}"),
+        _ => address.to_owned(),
+    };
+    let mut endpoint = Endpoint::from_shared(address.clone())
+        .map_err(|e| error(e.to_string()))?
         .connect_timeout(Duration::from_secs(5))
         .tcp_nodelay(true)
         .initial_stream_window_size(8 << 20)
-        .initial_connection_window_size(16 << 20))
+        .initial_connection_window_size(16 << 20);
+    if address.starts_with("https://") {
+        let Some(ca) = &credentials.tls_ca_pem else {
+            return Err(error(
+                "TLS needs the CA that signed the planner's certificate (--tls-ca)".into(),
+            ));
+        };
+        let mut tls = ClientTlsConfig::new().ca_certificate(Certificate::from_pem(ca));
+        if let Some((cert, key)) = &credentials.tls_identity_pem {
+            tls = tls.identity(Identity::from_pem(cert, key));
+        }
+        if let Some(domain) = &credentials.tls_domain {
+            tls = tls.domain_name(domain.clone());
+        }
+        endpoint = endpoint.tls_config(tls).map_err(|e| error(e.to_string()))?;
+    }
+    Ok(endpoint)
 }
 
 /// Whether a failed call may be sent again to another replica: the replica
@@ -137,12 +221,28 @@ impl PlannerClient {
     /// after 5 s when none can be reached. Replicas that cannot be reached
     /// now are tried again later.
     pub async fn connect(endpoints: &str) -> Result<Self> {
-        Self::connect_all(&replicas::endpoints(endpoints).await?).await
+        Self::connect_with(endpoints, &Credentials::default()).await
+    }
+
+    /// [`Self::connect`] to a planner that asks for TLS, a client
+    /// certificate or a bearer token.
+    pub async fn connect_with(endpoints: &str, credentials: &Credentials) -> Result<Self> {
+        Self::connect_all(&replicas::endpoints(endpoints).await?, credentials).await
     }
 
     /// Connects to each of `endpoints` (one replica each).
-    pub async fn connect_all(endpoints: &[String]) -> Result<Self> {
-        let endpoints: Vec<Endpoint> = endpoints.iter().map(|a| endpoint(a)).collect::<Result<_>>()?;
+    pub async fn connect_all(endpoints: &[String], credentials: &Credentials) -> Result<Self> {
+        let authorization = match &credentials.bearer_token {
+            Some(token) => Some(format!("Bearer {token}").parse().map_err(|_| Error::Input {
+                file: "bearer token".into(),
+                reason: "not a valid header value".into(),
+            })?),
+            None => None,
+        };
+        let endpoints: Vec<Endpoint> = endpoints
+            .iter()
+            .map(|a| endpoint(a, credentials))
+            .collect::<Result<_>>()?;
         let attempts = futures_util::future::join_all(endpoints.iter().map(Endpoint::connect)).await;
         let mut reasons = Vec::new();
         let mut down = Vec::new();
@@ -177,6 +277,7 @@ impl PlannerClient {
                 turns: RoundRobin::new(stubs.len(), &down),
                 endpoints: names,
                 stubs,
+                authorization,
             }),
             timeout: None,
         })
@@ -189,6 +290,7 @@ impl PlannerClient {
                 endpoints: vec!["channel".to_owned()],
                 stubs: vec![Stubs::new(channel)],
                 turns: RoundRobin::new(1, &[]),
+                authorization: None,
             }),
             timeout: None,
         }
@@ -211,10 +313,13 @@ impl PlannerClient {
         self.pool.turns.retries()
     }
 
-    fn request<T>(message: T, timeout: Option<Duration>) -> tonic::Request<T> {
+    fn request<T>(&self, message: T, timeout: Option<Duration>) -> tonic::Request<T> {
         let mut request = tonic::Request::new(message);
         if let Some(t) = timeout {
             request.set_timeout(t);
+        }
+        if let Some(a) = &self.pool.authorization {
+            request.metadata_mut().insert("authorization", a.clone());
         }
         request
     }
@@ -235,7 +340,7 @@ impl PlannerClient {
         if turns.len() == 1 {
             let answer = call(
                 self.pool.stubs[replica].clone(),
-                Self::request(message, self.timeout),
+                self.request(message, self.timeout),
             )
             .await;
             return match answer {
@@ -250,7 +355,7 @@ impl PlannerClient {
             tried[replica] = true;
             let answer = call(
                 self.pool.stubs[replica].clone(),
-                Self::request(message.clone(), timeout),
+                self.request(message.clone(), timeout),
             )
             .await;
             let status = match answer {
@@ -295,7 +400,7 @@ impl PlannerClient {
         let turns = &self.pool.turns;
         let i = turns.pick();
         let mut stubs = self.pool.stubs[i].clone();
-        match stubs.planner.stream_grasps(requests).await {
+        match stubs.planner.stream_grasps(self.request(requests, None)).await {
             Ok(response) => {
                 turns.mark_answered(i);
                 Ok(response.into_inner())

@@ -6,7 +6,7 @@ use anyhow::{Context, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use mvgrasp_client::{
-    PlannerClient,
+    Credentials, PlannerClient,
     bench::{self, BenchConfig},
     pb,
     scene::SceneFiles,
@@ -31,6 +31,21 @@ struct Cli {
     /// Deadline per call (ms).
     #[arg(long, global = true)]
     timeout_ms: Option<u64>,
+    /// PEM CA that signed the planner's certificate: call over TLS.
+    #[arg(long, global = true, env = "MVGRASP_TLS_CA")]
+    tls_ca: Option<PathBuf>,
+    /// PEM certificate of this client (mutual TLS; with --tls-key).
+    #[arg(long, global = true, env = "MVGRASP_TLS_CERT", requires = "tls_key")]
+    tls_cert: Option<PathBuf>,
+    /// PEM private key of --tls-cert.
+    #[arg(long, global = true, env = "MVGRASP_TLS_KEY", requires = "tls_cert")]
+    tls_key: Option<PathBuf>,
+    /// The name on the planner's certificate, if the address differs.
+    #[arg(long, global = true, env = "MVGRASP_TLS_DOMAIN")]
+    tls_domain: Option<String>,
+    /// File with the bearer token the planner asks for.
+    #[arg(long, global = true, env = "MVGRASP_TOKEN_FILE")]
+    token_file: Option<PathBuf>,
     #[command(subcommand)]
     command: Command,
 }
@@ -278,7 +293,13 @@ fn print_table(r: &pb::PlanGraspsResponse) {
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
-    let mut client = PlannerClient::connect(&cli.server).await?;
+    let credentials = Credentials::from_files(
+        cli.tls_ca.as_deref(),
+        cli.tls_cert.as_deref().zip(cli.tls_key.as_deref()),
+        cli.tls_domain.clone(),
+        cli.token_file.as_deref(),
+    )?;
+    let mut client = PlannerClient::connect_with(&cli.server, &credentials).await?;
     if let Some(ms) = cli.timeout_ms {
         client = client.with_timeout(Duration::from_millis(ms));
     }

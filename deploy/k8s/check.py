@@ -54,9 +54,22 @@ def wiring(overlay, objects):
               all(p["targetPort"] in ports for p in s["spec"]["ports"]), str(s["spec"]["ports"]))
     check(f"{overlay}: a headless Service for client-side balancing",
           any(s["spec"].get("clusterIP") == "None" for s in services))
+    env = {e["name"]: e.get("value") for e in container.get("env", [])}
+    secured = overlay.endswith("mtls")
+    # Probes cannot speak TLS: with TLS they ask the plaintext health port.
+    probed = "health" if secured else "grpc"
     for probe in ("startupProbe", "readinessProbe", "livenessProbe"):
-        check(f"{overlay}: {probe} is a gRPC health check on the gRPC port",
-              container.get(probe, {}).get("grpc", {}).get("port") == ports.get("grpc"))
+        check(f"{overlay}: {probe} is a gRPC health check on the {probed} port",
+              container.get(probe, {}).get("grpc", {}).get("port") == ports.get(probed))
+    if secured:
+        mounted_at = {m["mountPath"]: m["name"] for m in container["volumeMounts"]}
+        secrets = {v["name"]: v["secret"]["secretName"] for v in pod["spec"]["volumes"] if "secret" in v}
+        files = [env.get(k) for k in ("MVGRASP_TLS_CERT", "MVGRASP_TLS_KEY", "MVGRASP_TLS_CLIENT_CA",
+                                      "MVGRASP_BEARER_TOKEN_FILE")]
+        check(f"{overlay}: TLS, client CA and token files come from mounted Secrets",
+              all(f and mounted_at.get(os.path.dirname(f)) in secrets for f in files), f"{files} {secrets}")
+        check(f"{overlay}: the health port is the one the server listens on",
+              env.get("MVGRASP_HEALTH_LISTEN", "").endswith(f":{ports.get('health')}"))
     check(f"{overlay}: readiness asks for the planner service",
           container["readinessProbe"]["grpc"].get("service") == "mvgrasp.v1.GraspPlanner")
     security = container["securityContext"]
@@ -90,7 +103,6 @@ def wiring(overlay, objects):
     mounted = [v["configMap"]["name"] for v in pod["spec"]["volumes"] if "configMap" in v]
     check(f"{overlay}: the pods mount the generated ConfigMap", mounted == [config["metadata"]["name"]])
     gpus = container["resources"].get("limits", {}).get("nvidia.com/gpu")
-    env = {e["name"]: e.get("value") for e in container.get("env", [])}
     if overlay == "gpu":
         check("gpu: one GPU per pod, the CUDA device", gpus == "1" and env.get("MVGRASP_DEVICE") == "cuda")
     else:
@@ -105,7 +117,8 @@ def wiring(overlay, objects):
 
 def main():
     overlays = sorted(os.path.basename(d) for d in glob.glob(os.path.join(HERE, "overlays", "*")))
-    check("overlays cpu, gpu, cpu-in-flight", {"cpu", "gpu", "cpu-in-flight"} <= set(overlays), str(overlays))
+    check("overlays cpu, gpu, cpu-in-flight, cpu-mtls", {"cpu", "gpu", "cpu-in-flight", "cpu-mtls"} <= set(overlays),
+          str(overlays))
     rendered_dir = tempfile.mkdtemp(prefix="mvgrasp-k8s-")
     for overlay in overlays:
         rendered = subprocess.run(["kubectl", "kustomize", os.path.join(HERE, "overlays", overlay)],

@@ -23,6 +23,7 @@ pub mod batcher;
 pub mod convert;
 mod error;
 pub mod metrics;
+pub mod security;
 mod server;
 mod service;
 pub mod settings;

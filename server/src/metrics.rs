@@ -58,6 +58,8 @@ pub struct Metrics {
     pub in_flight_limit: IntGauge,
     /// 1, labelled with the loaded model and backend.
     pub model_info: IntGaugeVec,
+    /// Planning calls refused for a missing or wrong bearer token.
+    pub unauthenticated: IntCounter,
 }
 
 /// The `cause` label values of `mvgrasp_grasp_candidates_refused_total`.
@@ -167,9 +169,14 @@ impl Metrics {
                 &["model_version", "data_version", "backend", "input_size_px"],
             )
             .map_err(metric_error)?,
+            unauthenticated: IntCounter::new(
+                "unauthenticated_calls_total",
+                "Planning calls refused for a missing or wrong bearer token",
+            )
+            .map_err(metric_error)?,
             registry,
         };
-        let collectors: [Box<dyn prometheus::core::Collector>; 19] = [
+        let collectors: [Box<dyn prometheus::core::Collector>; 20] = [
             Box::new(m.requests.clone()),
             Box::new(m.request_seconds.clone()),
             Box::new(m.stage_seconds.clone()),
@@ -189,6 +196,7 @@ impl Metrics {
             Box::new(m.queued_views_limit.clone()),
             Box::new(m.in_flight_limit.clone()),
             Box::new(m.model_info.clone()),
+            Box::new(m.unauthenticated.clone()),
         ];
         for c in collectors {
             m.registry.register(c).map_err(metric_error)?;

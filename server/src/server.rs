@@ -5,12 +5,16 @@ use std::{future::Future, net::SocketAddr, sync::Arc, time::Duration};
 
 use mvgrasp_proto::v1::grasp_planner_server::GraspPlannerServer;
 use tokio::{net::TcpListener, sync::oneshot, task::JoinHandle};
-use tonic::transport::{Server, server::TcpIncoming};
+use tonic::{
+    service::interceptor::InterceptedService,
+    transport::{Server, server::TcpIncoming},
+};
 
 use crate::{
     backend::{self, LoadedNet},
     error::{Error, Result},
     metrics::{self, Metrics},
+    security::{self, BearerAuth},
     service::{PlannerService, PlannerState, limit_status},
     settings::Settings,
 };
@@ -25,6 +29,8 @@ pub struct RunningServer {
     pub addr: SocketAddr,
     /// The bound metrics address, if any.
     pub metrics_addr: Option<SocketAddr>,
+    /// The bound plaintext health address, if any.
+    pub health_addr: Option<SocketAddr>,
     /// The shared state (model info, metrics).
     pub state: Arc<PlannerState>,
     stop: Option<oneshot::Sender<()>>,
@@ -61,6 +67,7 @@ pub async fn start(settings: Settings) -> Result<RunningServer> {
 /// Starts the server around an already loaded network (tests use fakes).
 pub async fn start_with_net(settings: Settings, net: LoadedNet) -> Result<RunningServer> {
     settings.validate()?;
+    let security = security::load(&settings.security)?;
     let metrics = Arc::new(Metrics::new()?);
     let listener = TcpListener::bind(settings.listen)
         .await
@@ -90,6 +97,8 @@ pub async fn start_with_net(settings: Settings, net: LoadedNet) -> Result<Runnin
         model_version = %net.net.contract().model_version,
         "mvgrasp-server listening"
     );
+    let health_listen = settings.security.health_listen;
+    let auth = BearerAuth::new(security.token, metrics.unauthenticated.clone());
     let state = Arc::new(PlannerState::new(settings, net, metrics)?);
 
     let (health, health_service) = tonic_health::server::health_reporter();
@@ -99,9 +108,34 @@ pub async fn start_with_net(settings: Settings, net: LoadedNet) -> Result<Runnin
         .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
         .build_v1()
         .map_err(|e| Error::Startup(format!("reflection: {e}")))?;
-    let planner = GraspPlannerServer::new(PlannerService::new(Arc::clone(&state)))
-        .max_decoding_message_size(max_message_bytes)
-        .max_encoding_message_size(usize::MAX);
+    let planner = InterceptedService::new(
+        GraspPlannerServer::new(PlannerService::new(Arc::clone(&state)))
+            .max_decoding_message_size(max_message_bytes)
+            .max_encoding_message_size(usize::MAX),
+        auth,
+    );
+    let mut builder = Server::builder();
+    if let Some(tls) = security.tls {
+        builder = builder
+            .tls_config(tls)
+            .map_err(|e| Error::Startup(format!("security: TLS: {e}")))?;
+    }
+    // Probes that cannot speak TLS ask a plaintext port that serves health alone.
+    let (health_addr, health_task) = match health_listen {
+        Some(at) => {
+            let listener = TcpListener::bind(at)
+                .await
+                .map_err(|e| Error::Startup(format!("health listen {at}: {e}")))?;
+            let bound = listener
+                .local_addr()
+                .map_err(|e| Error::Startup(format!("health address: {e}")))?;
+            let serve = Server::builder()
+                .add_service(health_service.clone())
+                .serve_with_incoming(TcpIncoming::from(listener));
+            (Some(bound), Some(tokio::spawn(serve)))
+        }
+        None => (None, None),
+    };
 
     let (stop, stopped) = oneshot::channel::<()>();
     let task = tokio::spawn(async move {
@@ -119,7 +153,7 @@ pub async fn start_with_net(settings: Settings, net: LoadedNet) -> Result<Runnin
         };
         // Frames are 0.5-4 MB: windows that hold a whole frame, and no Nagle
         // delay on the small frames (window updates, responses).
-        let serve = Server::builder()
+        let serve = builder
             .initial_stream_window_size(HTTP2_WINDOW_BYTES)
             .initial_connection_window_size(2 * HTTP2_WINDOW_BYTES)
             .layer(tower::util::MapResponseLayer::new(rewrite_limit_status))
@@ -131,11 +165,15 @@ pub async fn start_with_net(settings: Settings, net: LoadedNet) -> Result<Runnin
         if let Some(task) = metrics_task {
             task.abort();
         }
+        if let Some(task) = health_task {
+            task.abort();
+        }
         result
     });
     Ok(RunningServer {
         addr,
         metrics_addr,
+        health_addr,
         state,
         stop: Some(stop),
         task,

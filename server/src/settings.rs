@@ -188,6 +188,27 @@ impl Default for DecodeSettings {
     }
 }
 
+/// Transport security and who may plan (`[security]`; all optional: by
+/// default the gRPC port is plaintext and open, for a trusted network).
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SecuritySettings {
+    /// PEM certificate chain of the server; with `tls_key`, the gRPC port
+    /// speaks TLS only.
+    pub tls_cert: Option<PathBuf>,
+    /// PEM private key of `tls_cert`.
+    pub tls_key: Option<PathBuf>,
+    /// PEM CA certificate(s): clients must present a certificate signed by
+    /// one of them (mutual TLS); needs `tls_cert`.
+    pub tls_client_ca: Option<PathBuf>,
+    /// File holding the token planning calls must send as
+    /// `authorization: Bearer <token>` (health and reflection stay open).
+    pub bearer_token_file: Option<PathBuf>,
+    /// Plaintext address serving only the gRPC health service, for probes
+    /// that cannot speak TLS (Kubernetes' gRPC probes).
+    pub health_listen: Option<SocketAddr>,
+}
+
 /// All settings of the server.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -208,6 +229,8 @@ pub struct Settings {
     pub segment: SegmentSettings,
     /// Decoding and ranking.
     pub decode: DecodeSettings,
+    /// TLS, mutual TLS, bearer token, the plaintext health port.
+    pub security: SecuritySettings,
     /// How long SIGTERM waits for in-flight calls before closing (s).
     pub shutdown_grace_s: f64,
 }
@@ -223,6 +246,7 @@ impl Default for Settings {
             defaults: RequestDefaults::default(),
             segment: SegmentSettings::default(),
             decode: DecodeSettings::default(),
+            security: SecuritySettings::default(),
             shutdown_grace_s: 10.0,
         }
     }
@@ -270,6 +294,21 @@ pub struct Overrides {
     /// Longest wait for a batch to fill (ms); 0 disables batching.
     #[arg(long, env = "MVGRASP_MAX_WAIT_MS")]
     pub max_wait_ms: Option<f64>,
+    /// PEM certificate chain: the gRPC port speaks TLS (with --tls-key).
+    #[arg(long, env = "MVGRASP_TLS_CERT")]
+    pub tls_cert: Option<PathBuf>,
+    /// PEM private key of --tls-cert.
+    #[arg(long, env = "MVGRASP_TLS_KEY")]
+    pub tls_key: Option<PathBuf>,
+    /// PEM CA: clients need a certificate it signed (mutual TLS).
+    #[arg(long, env = "MVGRASP_TLS_CLIENT_CA")]
+    pub tls_client_ca: Option<PathBuf>,
+    /// File with the bearer token planning calls must send.
+    #[arg(long, env = "MVGRASP_BEARER_TOKEN_FILE")]
+    pub bearer_token_file: Option<PathBuf>,
+    /// Plaintext address for the gRPC health service alone (probes).
+    #[arg(long, env = "MVGRASP_HEALTH_LISTEN")]
+    pub health_listen: Option<SocketAddr>,
 }
 
 impl Settings {
@@ -330,6 +369,20 @@ impl Settings {
         }
         if let Some(v) = o.max_wait_ms {
             self.batching.max_wait_ms = v;
+        }
+        let security = &mut self.security;
+        for (flag, setting) in [
+            (&o.tls_cert, &mut security.tls_cert),
+            (&o.tls_key, &mut security.tls_key),
+            (&o.tls_client_ca, &mut security.tls_client_ca),
+            (&o.bearer_token_file, &mut security.bearer_token_file),
+        ] {
+            if flag.is_some() {
+                setting.clone_from(flag);
+            }
+        }
+        if let Some(v) = o.health_listen {
+            security.health_listen = Some(v);
         }
     }
 
@@ -397,6 +450,16 @@ impl Settings {
         }
         if self.defaults.max_grasps == 0 {
             return bad("defaults.max_grasps", "must be > 0".into());
+        }
+        let tls = &self.security;
+        if tls.tls_cert.is_some() != tls.tls_key.is_some() {
+            return bad("security.tls_cert", "tls_cert and tls_key go together".into());
+        }
+        if tls.tls_client_ca.is_some() && tls.tls_cert.is_none() {
+            return bad(
+                "security.tls_client_ca",
+                "mutual TLS needs tls_cert and tls_key".into(),
+            );
         }
         if !(self.shutdown_grace_s.is_finite() && self.shutdown_grace_s >= 0.0) {
             return bad(

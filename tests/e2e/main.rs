@@ -13,3 +13,4 @@ mod contract;
 mod fixture;
 mod onnx;
 mod operations;
+mod security;
