@@ -336,3 +336,338 @@ async fn every_bad_field_is_named_and_the_server_keeps_serving() {
     assert!(client.plan(good).await.is_ok());
     server.shutdown().await.unwrap();
 }
+
+/// Edge values of every field: each call gets INVALID_ARGUMENT or
+/// RESOURCE_EXHAUSTED naming what is off, or a valid answer (finite,
+/// ranked, within the gripper); never INTERNAL (a panic), never a hang
+/// (each call has a 20 s deadline); and the next valid call is answered.
+fn edges() -> Vec<(&'static str, Edit)> {
+    fn v(x: f64, y: f64, z: f64) -> Option<pb::Vector3> {
+        Some(pb::Vector3 { x, y, z })
+    }
+    fn f32s(values: &[f32]) -> Vec<u8> {
+        values.iter().flat_map(|x| x.to_le_bytes()).collect()
+    }
+    let intrinsic = |set: fn(&mut pb::CameraIntrinsics)| -> Edit {
+        Box::new(move |r| set(depth(r).intrinsics.as_mut().unwrap()))
+    };
+    let mut out: Vec<(&'static str, Edit)> = vec![
+        ("fx infinite", intrinsic(|k| k.fx = f64::INFINITY)),
+        ("fx negative", intrinsic(|k| k.fx = -600.0)),
+        ("fx huge", intrinsic(|k| k.fx = 1e300)),
+        ("fx tiny", intrinsic(|k| k.fx = 1e-300)),
+        ("cx NaN", intrinsic(|k| k.cx = f64::NAN)),
+        ("cy far outside the image", intrinsic(|k| k.cy = -1e9)),
+        (
+            "1x1 image",
+            Box::new(|r| {
+                let d = depth(r);
+                (d.width, d.height) = (1, 1);
+                d.data = 800u16.to_le_bytes().to_vec();
+            }),
+        ),
+        (
+            "1x1 image of zero depth",
+            Box::new(|r| {
+                let d = depth(r);
+                (d.width, d.height) = (1, 1);
+                d.data = vec![0, 0];
+            }),
+        ),
+        (
+            "8192x8192 image header",
+            Box::new(|r| {
+                let d = depth(r);
+                (d.width, d.height) = (8192, 8192);
+            }),
+        ),
+        (
+            "every pixel at 65.535 m",
+            Box::new(|r| depth(r).data.iter_mut().for_each(|b| *b = 0xff)),
+        ),
+        (
+            "float32 depth of NaN, inf, negative",
+            Box::new(move |r| {
+                let d = depth(r);
+                let n = (d.width * d.height) as usize;
+                let values: Vec<f32> = (0..n)
+                    .map(|i| [f32::NAN, f32::INFINITY, -1.0, 0.0][i % 4])
+                    .collect();
+                d.encoding = pb::DepthEncoding::Float32M as i32;
+                d.data = f32s(&values);
+            }),
+        ),
+        (
+            "position infinite",
+            Box::new(|r| {
+                r.world_from_camera.as_mut().unwrap().position.as_mut().unwrap().z = f64::INFINITY;
+            }),
+        ),
+        (
+            "position huge",
+            Box::new(|r| {
+                r.world_from_camera.as_mut().unwrap().position.as_mut().unwrap().x = 1e30;
+            }),
+        ),
+        (
+            "quaternion NaN",
+            Box::new(|r| {
+                r.world_from_camera
+                    .as_mut()
+                    .unwrap()
+                    .orientation
+                    .as_mut()
+                    .unwrap()
+                    .w = f64::NAN;
+            }),
+        ),
+        (
+            "quaternion not unit (x1000)",
+            Box::new(|r| {
+                let q = r
+                    .world_from_camera
+                    .as_mut()
+                    .unwrap()
+                    .orientation
+                    .as_mut()
+                    .unwrap();
+                (q.x, q.y, q.z, q.w) = (q.x * 1e3, q.y * 1e3, q.z * 1e3, q.w * 1e3);
+            }),
+        ),
+        (
+            "quaternion of subnormals",
+            Box::new(|r| {
+                r.world_from_camera.as_mut().unwrap().orientation = Some(pb::Quaternion {
+                    x: 0.0,
+                    y: 0.0,
+                    z: 0.0,
+                    w: 1e-310,
+                });
+            }),
+        ),
+        (
+            "camera under the table, looking up",
+            Box::new(|r| {
+                r.world_from_camera = Some(pb::Pose {
+                    position: v(0.0, 0.0, -0.8),
+                    orientation: Some(pb::Quaternion {
+                        x: 0.0,
+                        y: 0.0,
+                        z: 0.0,
+                        w: 1.0,
+                    }),
+                });
+            }),
+        ),
+        (
+            "workspace NaN",
+            Box::new(move |r| {
+                r.workspace = Some(pb::Workspace {
+                    min: v(f64::NAN, -1.0, -1.0),
+                    max: v(1.0, 1.0, 1.0),
+                });
+            }),
+        ),
+        (
+            "workspace of zero volume",
+            Box::new(move |r| {
+                r.workspace = Some(pb::Workspace {
+                    min: v(0.0, 0.0, 0.0),
+                    max: v(0.0, 0.0, 0.0),
+                });
+            }),
+        ),
+        (
+            "workspace infinite",
+            Box::new(move |r| {
+                r.workspace = Some(pb::Workspace {
+                    min: v(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY),
+                    max: v(f64::INFINITY, f64::INFINITY, f64::INFINITY),
+                });
+            }),
+        ),
+        (
+            "cloud of one point",
+            Box::new(|r| r.sensor = cloud(f32s(&[0.0, 0.0, 0.8]), 1)),
+        ),
+        (
+            "cloud of one point repeated 1,000 times",
+            Box::new(move |r| r.sensor = cloud(f32s(&[0.1, 0.0, 0.8]).repeat(1000), 1)),
+        ),
+        (
+            "cloud with infinities",
+            Box::new(move |r| r.sensor = cloud(f32s(&[f32::INFINITY, 0.0, 0.8, 0.0, 0.0, 0.8]), 1)),
+        ),
+        (
+            "cloud of huge coordinates",
+            Box::new(move |r| r.sensor = cloud(f32s(&[1e30, -1e30, 1e30]).repeat(100), 1)),
+        ),
+        (
+            "gripper NaN",
+            Box::new(|r| {
+                r.gripper = Some(pb::Gripper {
+                    max_width_m: f64::NAN,
+                    finger_width_m: 0.02,
+                    finger_depth_m: 0.04,
+                });
+            }),
+        ),
+        (
+            "gripper infinite",
+            Box::new(|r| {
+                r.gripper = Some(pb::Gripper {
+                    max_width_m: f64::INFINITY,
+                    finger_width_m: f64::INFINITY,
+                    finger_depth_m: f64::INFINITY,
+                });
+            }),
+        ),
+        (
+            "gripper of zero fingers",
+            Box::new(|r| {
+                r.gripper = Some(pb::Gripper {
+                    max_width_m: 0.14,
+                    finger_width_m: 0.0,
+                    finger_depth_m: 0.0,
+                });
+            }),
+        ),
+        (
+            "gripper 100 m wide",
+            Box::new(|r| {
+                r.gripper = Some(pb::Gripper {
+                    max_width_m: 100.0,
+                    finger_width_m: 0.02,
+                    finger_depth_m: 0.04,
+                });
+            }),
+        ),
+        ("max_grasps u32::MAX", Box::new(|r| r.max_grasps = u32::MAX)),
+        (
+            "min_quality 1 (nothing passes)",
+            Box::new(|r| r.min_quality = Some(1.0)),
+        ),
+        ("min_quality negative", Box::new(|r| r.min_quality = Some(-0.5))),
+        (
+            "view policy random, seed u64::MAX",
+            Box::new(|r| {
+                r.view_policy = pb::ViewPolicy::Random as i32;
+                r.random_seed = u64::MAX;
+            }),
+        ),
+        (
+            "approach cone wider than a sphere",
+            Box::new(|r| {
+                r.approach_cone = Some(pb::ApproachCone {
+                    axis: Some(pb::Vector3 {
+                        x: 0.0,
+                        y: 0.0,
+                        z: -1.0,
+                    }),
+                    half_angle_rad: 10.0,
+                })
+            }),
+        ),
+        (
+            "approach cone of negative angle",
+            Box::new(|r| {
+                r.approach_cone = Some(pb::ApproachCone {
+                    axis: Some(pb::Vector3 {
+                        x: 0.0,
+                        y: 0.0,
+                        z: -1.0,
+                    }),
+                    half_angle_rad: -0.5,
+                })
+            }),
+        ),
+        (
+            "approach cone with an infinite axis",
+            Box::new(|r| {
+                r.approach_cone = Some(pb::ApproachCone {
+                    axis: Some(pb::Vector3 {
+                        x: f64::INFINITY,
+                        y: 0.0,
+                        z: -1.0,
+                    }),
+                    half_angle_rad: 0.5,
+                })
+            }),
+        ),
+        (
+            "request id of 100 kB",
+            Box::new(|r| r.request_id = "x".repeat(100_000)),
+        ),
+        (
+            "debug views asked for",
+            Box::new(|r| r.include_debug_views = true),
+        ),
+    ];
+    // Out-of-range enum values the proto cannot stop.
+    out.push(("cloud frame -1", Box::new(|r| r.sensor = cloud(vec![0; 12], -1))));
+    out
+}
+
+fn check_valid(name: &str, answer: &pb::PlanGraspsResponse) {
+    for g in &answer.grasps {
+        let pose = g.pose.unwrap_or_default();
+        let p = pose.position.unwrap_or_default();
+        let q = pose.orientation.unwrap_or_default();
+        assert!(
+            [p.x, p.y, p.z, q.x, q.y, q.z, q.w].iter().all(|v| v.is_finite()),
+            "{name}: a grasp with non-finite pose {pose:?}"
+        );
+        assert!(
+            g.quality.is_finite() && g.width_m.is_finite() && g.width_m > 0.0,
+            "{name}: {g:?}"
+        );
+    }
+    assert!(answer.objects.len() <= 4096, "{name}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn edge_values_get_a_clear_error_or_a_valid_answer() {
+    let mut s = settings(BackendKind::Onnx);
+    s.limits.max_image_pixels = 2_000_000;
+    let (server, client) = start(s).await;
+    let mut client = client.with_timeout(std::time::Duration::from_secs(20));
+    let good = request(
+        &grid_scene(0.0, 3, 3, 0.13),
+        &Camera::orbit(Vector3::zeros(), 0.85, 50.0, -90.0),
+    );
+    let mut outcomes = Vec::new();
+    for (name, edit) in edges() {
+        let mut edge = good.clone();
+        edit(&mut edge);
+        let outcome = match client.plan(edge).await {
+            Ok(answer) => {
+                check_valid(name, &answer);
+                format!(
+                    "answered: {} objects, {} grasps",
+                    answer.objects.len(),
+                    answer.grasps.len()
+                )
+            }
+            Err(Error::Rpc(status)) => {
+                assert!(
+                    matches!(status.code(), Code::InvalidArgument | Code::ResourceExhausted),
+                    "{name}: {:?} {}",
+                    status.code(),
+                    status.message()
+                );
+                assert!(
+                    status.message().len() > 10,
+                    "{name}: say what is off: {}",
+                    status.message()
+                );
+                format!("{:?}: {}", status.code(), status.message())
+            }
+            Err(other) => panic!("{name}: {other}"),
+        };
+        outcomes.push(format!("{name:<40} {outcome}"));
+        let after = client.plan(good.clone()).await;
+        assert!(after.is_ok(), "after {name}: {after:?}");
+    }
+    eprintln!("{}", outcomes.join("\n"));
+    server.shutdown().await.unwrap();
+}
