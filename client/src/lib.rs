@@ -69,6 +69,9 @@ pub enum Error {
 /// Shorthand used across the crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
+/// How long past a call's deadline the client waits for the server's answer.
+const CLIENT_DEADLINE_GRACE: Duration = Duration::from_millis(250);
+
 /// Largest response accepted (debug views can be large).
 const MAX_RESPONSE_BYTES: usize = 256 << 20;
 
@@ -338,11 +341,16 @@ impl PlannerClient {
         let turns = &self.pool.turns;
         let mut replica = turns.pick();
         if turns.len() == 1 {
-            let answer = call(
-                self.pool.stubs[replica].clone(),
-                self.request(message, self.timeout),
-            )
-            .await;
+            let answer = self
+                .within(
+                    self.timeout,
+                    replica,
+                    call(
+                        self.pool.stubs[replica].clone(),
+                        self.request(message, self.timeout),
+                    ),
+                )
+                .await;
             return match answer {
                 Ok(response) => Ok(response.into_inner()),
                 Err(status) => Err(status.into()),
@@ -353,11 +361,16 @@ impl PlannerClient {
         let mut timeout = self.timeout;
         loop {
             tried[replica] = true;
-            let answer = call(
-                self.pool.stubs[replica].clone(),
-                self.request(message.clone(), timeout),
-            )
-            .await;
+            let answer = self
+                .within(
+                    timeout,
+                    replica,
+                    call(
+                        self.pool.stubs[replica].clone(),
+                        self.request(message.clone(), timeout),
+                    ),
+                )
+                .await;
             let status = match answer {
                 Ok(response) => {
                     turns.mark_answered(replica);
@@ -382,6 +395,36 @@ impl PlannerClient {
             turns.count_retry();
             tracing::debug!(from = %self.pool.endpoints[replica], to = %self.pool.endpoints[next], %status, "retrying on another replica");
             replica = next;
+        }
+    }
+
+    /// `call` within `timeout`: a planner that answers nothing (a stopped
+    /// process, a dead host behind a live connection) ends in
+    /// DEADLINE_EXCEEDED naming the replica. tonic gives up at the deadline
+    /// itself but says CANCELLED ("Timeout expired"); the tokio timer is the
+    /// backstop.
+    async fn within<R>(
+        &self,
+        timeout: Option<Duration>,
+        replica: usize,
+        call: impl Future<Output = Result<tonic::Response<R>, tonic::Status>>,
+    ) -> Result<tonic::Response<R>, tonic::Status> {
+        let Some(t) = timeout else {
+            return call.await;
+        };
+        let started = Instant::now();
+        let expired = || {
+            tonic::Status::deadline_exceeded(format!(
+                "no answer from {} within {t:?}",
+                self.pool.endpoints[replica]
+            ))
+        };
+        match tokio::time::timeout(t + CLIENT_DEADLINE_GRACE, call).await {
+            Err(_) => Err(expired()),
+            Ok(Err(status)) if status.code() == tonic::Code::Cancelled && started.elapsed() >= t => {
+                Err(expired())
+            }
+            Ok(answer) => answer,
         }
     }
 

@@ -2,10 +2,11 @@
 //!
 //! Arm motions go out as URScript in chunks between gripper actions; after
 //! each chunk the executor waits on RTDE until the joints reach the chunk's
-//! last waypoint. A protective stop, a dropped connection, a timeout or a
-//! gripper that closes on nothing ends the pick right there with a clear
-//! outcome, and no further motion is sent: the robot is left stopped, never
-//! moving on a guess.
+//! last waypoint. A protective stop, a dropped connection, a timeout, a
+//! gripper that stalls or closes on nothing ends the pick right there with a
+//! clear outcome, and no further motion is sent: the robot is left stopped,
+//! never moving on a guess. A lost RTDE link or a timeout mid-motion also
+//! sends `stopj`, since the controller would run the program on.
 
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
@@ -71,7 +72,10 @@ pub fn execute_pick(
             Step::Gripper { name, close, width_m } => {
                 run_chunk(controller, &mut chunk, plan.grasp_index, config)?;
                 let target = if *close { 0.0 } else { *width_m };
-                let (outcome, measured) = controller.gripper.move_to(target, GRIP_SPEED, GRIP_FORCE)?;
+                let (outcome, measured) = controller
+                    .gripper
+                    .move_to(target, GRIP_SPEED, GRIP_FORCE)
+                    .map_err(|e| Error::Controller(format!("gripper ({name}): {e}; the arm is still")))?;
                 match (close, outcome) {
                     (true, GripOutcome::Holding) => held_width_m = measured,
                     (true, _) => return Ok(PickOutcome::NoObject),
@@ -106,11 +110,32 @@ fn run_chunk(
         },
         config,
     );
+    // A fresh state first: no motion goes out over a link that is down or
+    // to a controller that stopped.
+    let before = controller
+        .rtde
+        .next_state()
+        .map_err(|e| Error::Controller(format!("RTDE link lost before a motion ({e}): nothing sent")))?;
+    if before.stopped_by_safety() {
+        return Err(Error::ProtectiveStop {
+            safety_mode: before.safety_mode,
+        });
+    }
     send_script(controller.script_address, &program, controller.io_timeout)?;
     let start = Instant::now();
     let mut started = false;
     loop {
-        let state = controller.rtde.next_state()?;
+        let state = match controller.rtde.next_state() {
+            Ok(state) => state,
+            // The controller runs the program on without the link: stop it
+            // over the script interface, and say whether that worked.
+            Err(lost) => {
+                return Err(stop_after(
+                    controller,
+                    &format!("RTDE link lost mid-motion ({lost})"),
+                ));
+            }
+        };
         if state.stopped_by_safety() {
             return Err(Error::ProtectiveStop {
                 safety_mode: state.safety_mode,
@@ -122,13 +147,25 @@ fn run_chunk(
             return Ok(());
         }
         if start.elapsed() > controller.motion_timeout {
-            // Stop what is running; no further motion is sent.
-            let _ = send_script(controller.script_address, "stopj(2.0)\n", controller.io_timeout);
-            return Err(Error::Controller(format!(
-                "motion did not reach its waypoint within {:.1} s: stopped",
-                controller.motion_timeout.as_secs_f64()
-            )));
+            return Err(stop_after(
+                controller,
+                &format!(
+                    "motion did not reach its waypoint within {:.1} s",
+                    controller.motion_timeout.as_secs_f64()
+                ),
+            ));
         }
+    }
+}
+
+/// Stops whatever program runs (`stopj`) after `what` went wrong; no further
+/// motion is sent. The error says whether the stop reached the controller.
+fn stop_after(controller: &Controller, what: &str) -> Error {
+    match send_script(controller.script_address, "stopj(2.0)\n", controller.io_timeout) {
+        Ok(()) => Error::Controller(format!("{what}: arm stopped (stopj sent)")),
+        Err(e) => Error::Controller(format!(
+            "{what}: stopj could not be sent either ({e}); stop the arm at the pendant"
+        )),
     }
 }
 

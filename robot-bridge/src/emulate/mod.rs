@@ -2,7 +2,8 @@
 //! out), a script receiver that executes `movej` / `movel` by interpolating
 //! the joints at the commanded speed, the dashboard server, a Robotiq
 //! 2F-140 on the URCap socket (closing stops on an object of a set width),
-//! and fault injection (protective stop, dropped connections, an output
+//! and fault injection (protective stop, dropped connections, a dropped RTDE
+//! link alone, a stalled gripper, an output
 //! recipe already in use).
 //!
 //! Simplifications, stated: `movel` is interpolated in joint space between
@@ -35,6 +36,11 @@ pub struct Faults {
     pub drop_connections: AtomicBool,
     /// Answer every output variable with `IN_USE`.
     pub recipe_in_use: AtomicBool,
+    /// Close the RTDE link (and refuse new ones) while set; the script,
+    /// gripper and dashboard interfaces stay up.
+    pub drop_rtde: AtomicBool,
+    /// The gripper's motor stalls: a commanded motion never ends.
+    pub gripper_stalled: AtomicBool,
 }
 
 /// A queued joint motion.
@@ -91,6 +97,10 @@ impl Shared {
 
     fn should_close(&self) -> bool {
         self.stop.load(Ordering::Relaxed) || self.faults.drop_connections.load(Ordering::Relaxed)
+    }
+
+    fn should_close_rtde(&self) -> bool {
+        self.should_close() || self.faults.drop_rtde.load(Ordering::Relaxed)
     }
 }
 
@@ -160,10 +170,25 @@ impl Emulator {
         let (dashboard_address, gripper_address) = (dashboard.local_addr()?, gripper.local_addr()?);
         let threads = vec![
             spawn_servo(Arc::clone(&shared)),
-            spawn_acceptor(rtde, Arc::clone(&shared), rtde_server::serve),
-            spawn_acceptor(script, Arc::clone(&shared), script_server::serve),
-            spawn_acceptor(dashboard, Arc::clone(&shared), dashboard_server::serve),
-            spawn_acceptor(gripper, Arc::clone(&shared), gripper_server::serve),
+            spawn_acceptor(rtde, Arc::clone(&shared), rtde_server::serve, Serving::Concurrent),
+            spawn_acceptor(
+                script,
+                Arc::clone(&shared),
+                script_server::serve,
+                Serving::InOrder,
+            ),
+            spawn_acceptor(
+                dashboard,
+                Arc::clone(&shared),
+                dashboard_server::serve,
+                Serving::Concurrent,
+            ),
+            spawn_acceptor(
+                gripper,
+                Arc::clone(&shared),
+                gripper_server::serve,
+                Serving::Concurrent,
+            ),
         ];
         Ok(Self {
             shared,
@@ -216,7 +241,9 @@ fn spawn_servo(shared: Arc<Shared>) -> JoinHandle<()> {
                 if shared.faults.protective_stop.load(Ordering::Relaxed) {
                     robot.safety_mode = 3;
                 }
-                shared.gripper().tick(dt);
+                if !shared.faults.gripper_stalled.load(Ordering::Relaxed) {
+                    shared.gripper().tick(dt);
+                }
                 if robot.safety_mode != 1 {
                     robot.motions.clear();
                 } else if let Some(motion) = robot.motions.front().copied() {
@@ -274,11 +301,22 @@ fn serve_lines(
     }
 }
 
-/// Accepts connections until the emulator stops, one thread each.
+/// How an acceptor serves its connections.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Serving {
+    /// One thread per connection, side by side.
+    Concurrent,
+    /// One after the other, in the order they arrived (the controller runs
+    /// script programs in the order it receives them).
+    InOrder,
+}
+
+/// Accepts connections until the emulator stops.
 fn spawn_acceptor(
     listener: TcpListener,
     shared: Arc<Shared>,
     serve: fn(std::net::TcpStream, &Shared),
+    serving: Serving,
 ) -> JoinHandle<()> {
     std::thread::spawn(move || {
         let _ = listener.set_nonblocking(true);
@@ -287,6 +325,10 @@ fn spawn_acceptor(
             match listener.accept() {
                 Ok((stream, _)) if !shared.faults.drop_connections.load(Ordering::Relaxed) => {
                     let _ = stream.set_nonblocking(false);
+                    if serving == Serving::InOrder {
+                        serve(stream, &shared);
+                        continue;
+                    }
                     let shared = Arc::clone(&shared);
                     workers.push(std::thread::spawn(move || serve(stream, &shared)));
                 }

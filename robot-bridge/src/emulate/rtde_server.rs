@@ -23,7 +23,7 @@ pub(super) fn serve(mut stream: TcpStream, shared: &Shared) {
     let _ = stream.set_read_timeout(Some(Duration::from_millis(50)));
     let mut recipe: Vec<&str> = Vec::new();
     let mut period = Duration::from_millis(2);
-    while !shared.should_close() {
+    while !shared.should_close_rtde() {
         let Ok((kind, payload)) = read_packet(&mut stream) else {
             // A timeout just loops (to notice a stop); EOF or garbage ends the session.
             if stream.peek(&mut [0u8]).map(|n| n == 0).unwrap_or(false) {
@@ -82,7 +82,7 @@ pub(super) fn serve(mut stream: TcpStream, shared: &Shared) {
 
 /// Sends one data package per period until the client goes or connections drop.
 fn stream_state(stream: &mut TcpStream, shared: &Shared, recipe: &[&str], period: Duration) {
-    while !shared.should_close() {
+    while !shared.should_close_rtde() {
         let mut payload = vec![1u8];
         {
             let robot = shared.robot();

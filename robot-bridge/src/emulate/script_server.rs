@@ -1,4 +1,4 @@
-//! The emulator's script receiver: runs `set_tcp`, `movej` and `movel`.
+//! The emulator's script receiver: runs `set_tcp`, `movej`, `movel` and `stopj`.
 
 use std::io::Read;
 use std::net::TcpStream;
@@ -28,7 +28,10 @@ pub(super) fn serve(mut stream: TcpStream, shared: &Shared) {
     }
     let mut last = robot.motions.back().map_or(robot.q, |m| m.target);
     for line in program.lines().map(str::trim) {
-        if line.starts_with("set_tcp(") {
+        if line.starts_with("stopj(") {
+            // A new program replaces the running one: this one stops the arm.
+            robot.motions.clear();
+        } else if line.starts_with("set_tcp(") {
             if let Some(p) = pose(line) {
                 robot.flange_from_tcp = p;
             }

@@ -264,6 +264,93 @@ mod executor {
     }
 
     #[test]
+    fn a_dropped_rtde_link_mid_pick_stops_the_arm() {
+        let emu = emulator();
+        let mut c = controller(&emu);
+        let (plan, config) = fast_pick_plan();
+        let err = std::thread::scope(|s| {
+            s.spawn(|| {
+                // Once the arm is on its way.
+                let start = Instant::now();
+                while emu.joints() == HOME && start.elapsed() < Duration::from_secs(5) {
+                    std::thread::sleep(Duration::from_millis(2));
+                }
+                std::thread::sleep(Duration::from_millis(30));
+                emu.faults().drop_rtde.store(true, Ordering::Relaxed);
+            });
+            execute_pick(&mut c, &plan, &config).expect_err("the link dropped")
+        });
+        assert!(
+            matches!(&err, Error::Controller(m) if m.contains("RTDE link lost mid-motion") && m.contains("stopj sent")),
+            "{err}"
+        );
+        // stopj decelerates: the arm comes to rest within a second, and stays.
+        let start = Instant::now();
+        let mut q = emu.joints();
+        loop {
+            std::thread::sleep(Duration::from_millis(50));
+            let now = emu.joints();
+            if now == q || start.elapsed() > Duration::from_secs(1) {
+                break;
+            }
+            q = now;
+        }
+        std::thread::sleep(Duration::from_millis(200));
+        assert_eq!(emu.joints(), q, "the arm stopped with the link");
+        let first_motion = plan
+            .steps
+            .iter()
+            .find_map(|s| match s {
+                Step::MoveJ { joints, .. } | Step::MoveL { joints, .. } => Some(*joints),
+                Step::Gripper { .. } => None,
+            })
+            .expect("a motion");
+        assert!(
+            q != HOME && (0..6).any(|i| (q[i] - first_motion[i]).abs() > 1e-3),
+            "stopped on the way, not at the waypoint: {q:?}"
+        );
+    }
+
+    #[test]
+    fn no_motion_goes_out_over_a_link_that_is_down() {
+        let emu = emulator();
+        let mut c = controller(&emu);
+        let (plan, config) = fast_pick_plan();
+        // Down while the gripper opens, before the first motion.
+        emu.faults().drop_rtde.store(true, Ordering::Relaxed);
+        let err = execute_pick(&mut c, &plan, &config).expect_err("the link is down");
+        assert!(
+            matches!(&err, Error::Controller(m) | Error::Io(m) if m.contains("RTDE")),
+            "{err}"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+        assert_eq!(emu.joints(), HOME, "nothing was sent");
+    }
+
+    #[test]
+    fn a_gripper_that_does_not_move_ends_the_pick_with_the_arm_still() {
+        let emu = emulator();
+        let mut c = controller(&emu);
+        let (plan, config) = fast_pick_plan();
+        emu.faults().gripper_stalled.store(true, Ordering::Relaxed);
+        let err = execute_pick(&mut c, &plan, &config).expect_err("stalled");
+        assert!(
+            matches!(&err, Error::Controller(m) if m.contains("gripper") && m.contains("did not end in time")),
+            "{err}"
+        );
+        let q = emu.joints();
+        std::thread::sleep(Duration::from_millis(100));
+        assert_eq!(emu.joints(), q, "nothing moves after the gripper failed");
+        let Some(Step::MoveJ { joints: last, .. }) = plan.steps.last() else {
+            panic!("retreat")
+        };
+        assert!(
+            (0..6).any(|i| (q[i] - last[i]).abs() > 1e-3),
+            "the pick did not go on"
+        );
+    }
+
+    #[test]
     fn a_protective_stop_mid_pick_ends_it_stopped() {
         let emu = emulator();
         let mut c = controller(&emu);
@@ -422,6 +509,27 @@ mod from_files {
         assert!(
             matches!(err, Error::Io(_)) && err.to_string().contains(&endpoint),
             "{err}"
+        );
+    }
+
+    #[test]
+    fn a_planner_that_does_not_answer_is_a_clear_error_within_the_deadline() {
+        // Accepts connections and never says a word.
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+        let port = listener.local_addr().expect("address").port();
+        std::thread::spawn(move || {
+            let held: Vec<_> = listener.incoming().collect();
+            drop(held);
+        });
+        let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
+        let endpoint = format!("http://127.0.0.1:{port}");
+        let start = Instant::now();
+        let err = plan_remotely(&endpoint, &scene, 10, None, TIMEOUT).expect_err("no answer");
+        let waited = start.elapsed();
+        assert!(err.to_string().contains(&endpoint), "{err}");
+        assert!(
+            waited < TIMEOUT * 3,
+            "gave up after {waited:?}, deadline {TIMEOUT:?}"
         );
     }
 
