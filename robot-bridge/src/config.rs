@@ -96,6 +96,16 @@ pub struct PlannerSection {
     /// Only approaches within this cone are asked of the planner (what this
     /// cell's arm can execute); unset: any.
     pub approach_cone: Option<ConeConfig>,
+    /// PEM CA that signed the planner's certificate: call it over TLS.
+    pub tls_ca: Option<std::path::PathBuf>,
+    /// PEM certificate of this bridge (mutual TLS; with `tls_key`).
+    pub tls_cert: Option<std::path::PathBuf>,
+    /// PEM private key of `tls_cert`.
+    pub tls_key: Option<std::path::PathBuf>,
+    /// The name on the planner's certificate, if the endpoint differs.
+    pub tls_domain: Option<String>,
+    /// File with the bearer token the planner asks for.
+    pub token_file: Option<std::path::PathBuf>,
 }
 
 /// A cone of approach directions: `axis` (world) and its half-angle.
@@ -173,6 +183,11 @@ impl Default for BridgeConfig {
                 endpoint: None,
                 timeout_s: 5.0,
                 approach_cone: None,
+                tls_ca: None,
+                tls_cert: None,
+                tls_key: None,
+                tls_domain: None,
+                token_file: None,
             },
             recovery: RecoverySection {
                 unlock_protective_stop: false,
@@ -319,6 +334,23 @@ impl BridgeConfig {
                     .map_err(|e| bad("planner.approach_cone", e.to_string()))
             })
             .transpose()
+    }
+
+    /// What the planner asks for: `planner.tls_*` and `planner.token_file`, read.
+    pub fn planner_credentials(&self) -> Result<mvgrasp_client::Credentials> {
+        let p = &self.planner;
+        let identity = match (&p.tls_cert, &p.tls_key) {
+            (Some(cert), Some(key)) => Some((cert.as_path(), key.as_path())),
+            (None, None) => None,
+            _ => return Err(bad("planner.tls_cert", "tls_cert and tls_key go together".into())),
+        };
+        mvgrasp_client::Credentials::from_files(
+            p.tls_ca.as_deref(),
+            identity,
+            p.tls_domain.clone(),
+            p.token_file.as_deref(),
+        )
+        .map_err(|e| bad("planner", e.to_string()))
     }
 
     /// The basket as an obstacle.

@@ -274,6 +274,7 @@ fn pick(
     let planned = match &settings.planner.endpoint {
         Some(endpoint) => plan_remotely(
             endpoint,
+            &settings.planner_credentials()?,
             &scene,
             max_grasps,
             settings.approach_cone()?,

@@ -282,11 +282,13 @@ fn vector(v: Option<pb::Vector3>) -> Vector3<f64> {
 }
 
 /// Plans on `scene` with the mvgrasp service at `endpoint` (e.g.
-/// `http://127.0.0.1:50051`), waiting at most `timeout`. A planner that is
-/// down or answers an error is an [`Error::Io`] / [`Error::Controller`]
-/// naming it; nothing moves.
+/// `http://127.0.0.1:50051`, or several replicas), with `credentials` if it
+/// asks for them, waiting at most `timeout`. A planner that is down or
+/// answers an error is an [`Error::Io`] / [`Error::Controller`] naming it;
+/// nothing moves.
 pub fn plan_remotely(
     endpoint: &str,
+    credentials: &mvgrasp_client::Credentials,
     scene: &SceneFiles,
     max_grasps: usize,
     approach_cone: Option<ApproachCone>,
@@ -310,7 +312,7 @@ pub fn plan_remotely(
         ..scene.request.clone()
     };
     let (response, info) = runtime.block_on(async {
-        let connect = PlannerClient::connect(endpoint);
+        let connect = PlannerClient::connect_with(endpoint, credentials);
         let mut client = tokio::time::timeout(timeout, connect)
             .await
             .map_err(|_| Error::Io(format!("planner at {endpoint}: no connection within {timeout:?}")))?

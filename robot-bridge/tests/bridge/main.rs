@@ -472,8 +472,15 @@ mod from_files {
         let server = runtime.block_on(mvgrasp_server::start(settings)).expect("server");
         let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
         let local = plan_locally(&scene, 10, None).expect("local");
-        let remote =
-            plan_remotely(&format!("http://{}", server.addr), &scene, 10, None, TIMEOUT).expect("remote");
+        let remote = plan_remotely(
+            &format!("http://{}", server.addr),
+            &Default::default(),
+            &scene,
+            10,
+            None,
+            TIMEOUT,
+        )
+        .expect("remote");
         assert!(remote.planner.contains("baseline-moments"), "{}", remote.planner);
         assert_eq!(remote.grasps.len(), local.grasps.len());
         assert!(!remote.grasps.is_empty());
@@ -505,11 +512,44 @@ mod from_files {
             .port();
         let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
         let endpoint = format!("http://127.0.0.1:{port}");
-        let err = plan_remotely(&endpoint, &scene, 10, None, TIMEOUT).expect_err("nothing listens there");
+        let err = plan_remotely(&endpoint, &Default::default(), &scene, 10, None, TIMEOUT)
+            .expect_err("nothing listens there");
         assert!(
             matches!(err, Error::Io(_)) && err.to_string().contains(&endpoint),
             "{err}"
         );
+    }
+
+    #[test]
+    fn a_planner_that_asks_for_a_token_gets_the_configured_one() {
+        let runtime = tokio::runtime::Runtime::new().expect("runtime");
+        let dir = std::env::temp_dir().join(format!("rb-token-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        std::fs::write(dir.join("token"), "cell-4-token\n").expect("write");
+        let mut settings = mvgrasp_server::Settings {
+            listen: "127.0.0.1:0".parse().expect("address"),
+            metrics_listen: None,
+            ..Default::default()
+        };
+        settings.model.backend = mvgrasp_server::BackendKind::Baseline;
+        settings.security.bearer_token_file = Some(dir.join("token"));
+        let server = runtime.block_on(mvgrasp_server::start(settings)).expect("server");
+        let endpoint = format!("http://{}", server.addr);
+        let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
+        let err =
+            plan_remotely(&endpoint, &Default::default(), &scene, 10, None, TIMEOUT).expect_err("no token");
+        assert!(err.to_string().contains("Bearer"), "{err}");
+        let config: robot_bridge::config::BridgeConfig = toml::from_str(&format!(
+            "[planner]\nendpoint = \"{endpoint}\"\ntoken_file = \"{}\"\n",
+            dir.join("token").display()
+        ))
+        .expect("config");
+        let credentials = config.planner_credentials().expect("credentials");
+        let planned =
+            plan_remotely(&endpoint, &credentials, &scene, 10, None, TIMEOUT).expect("with the token");
+        assert_eq!(planned.objects.len(), 6);
+        runtime.block_on(server.shutdown()).expect("shutdown");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
@@ -524,7 +564,8 @@ mod from_files {
         let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
         let endpoint = format!("http://127.0.0.1:{port}");
         let start = Instant::now();
-        let err = plan_remotely(&endpoint, &scene, 10, None, TIMEOUT).expect_err("no answer");
+        let err =
+            plan_remotely(&endpoint, &Default::default(), &scene, 10, None, TIMEOUT).expect_err("no answer");
         let waited = start.elapsed();
         assert!(err.to_string().contains(&endpoint), "{err}");
         assert!(
