@@ -55,6 +55,14 @@ pub struct BenchReport {
     pub server_p50_ms: f64,
     /// Mean grasps per answer.
     pub mean_grasps: f64,
+    /// Failed calls by gRPC code (`Connect` when no connection was made).
+    pub errors_by_code: std::collections::BTreeMap<String, usize>,
+    /// Time to the error of failed calls (ms): median, 99th percentile, slowest.
+    pub error_p50_ms: f64,
+    /// 99th percentile of failed calls (ms).
+    pub error_p99_ms: f64,
+    /// Slowest failed call (ms).
+    pub error_max_ms: f64,
 }
 
 /// The `q`-quantile of sorted `values` (nearest rank).
@@ -73,6 +81,16 @@ struct Tally {
     grasps: usize,
     errors: usize,
     first_error: Option<String>,
+    error_latencies_ms: Vec<f64>,
+    errors_by_code: std::collections::BTreeMap<String, usize>,
+}
+
+fn code_of(e: &crate::Error) -> String {
+    match e {
+        crate::Error::Rpc(status) => format!("{:?}", status.code()),
+        crate::Error::Connect { .. } => "Connect".to_owned(),
+        crate::Error::Input { .. } => "Input".to_owned(),
+    }
 }
 
 /// Runs the benchmark; `progress` (if any) ticks once per measured call.
@@ -84,7 +102,9 @@ pub async fn run(
 ) -> Result<BenchReport> {
     let mut warm = client.clone();
     for _ in 0..config.warmup {
-        warm.plan(request.clone()).await?;
+        // Unmeasured: a warm-up call that fails (a deadline shorter than a
+        // plan, say) fails again, counted, in the measured part.
+        let _ = warm.plan(request.clone()).await;
     }
     let tickets = Arc::new(AtomicUsize::new(0));
     let start = Instant::now();
@@ -116,6 +136,8 @@ pub async fn run(
                     }
                     Err(e) => {
                         tally.errors += 1;
+                        tally.error_latencies_ms.push(sent.elapsed().as_secs_f64() * 1e3);
+                        *tally.errors_by_code.entry(code_of(&e)).or_default() += 1;
                         tally.first_error.get_or_insert_with(|| e.to_string());
                     }
                 }
@@ -133,6 +155,10 @@ pub async fn run(
         all.server_ms.extend(t.server_ms);
         all.grasps += t.grasps;
         all.errors += t.errors;
+        all.error_latencies_ms.extend(t.error_latencies_ms);
+        for (code, n) in t.errors_by_code {
+            *all.errors_by_code.entry(code).or_default() += n;
+        }
         if all.first_error.is_none() {
             all.first_error = t.first_error;
         }
@@ -140,6 +166,7 @@ pub async fn run(
     let elapsed_s = start.elapsed().as_secs_f64();
     all.latencies_ms.sort_by(f64::total_cmp);
     all.server_ms.sort_by(f64::total_cmp);
+    all.error_latencies_ms.sort_by(f64::total_cmp);
     let ok = all.latencies_ms.len();
     Ok(BenchReport {
         concurrency: config.concurrency.max(1),
@@ -154,6 +181,10 @@ pub async fn run(
         max_ms: all.latencies_ms.last().copied().unwrap_or(f64::NAN),
         server_p50_ms: quantile(&all.server_ms, 0.5),
         mean_grasps: all.grasps as f64 / ok.max(1) as f64,
+        error_p50_ms: quantile(&all.error_latencies_ms, 0.5),
+        error_p99_ms: quantile(&all.error_latencies_ms, 0.99),
+        error_max_ms: all.error_latencies_ms.last().copied().unwrap_or(f64::NAN),
+        errors_by_code: all.errors_by_code,
     })
 }
 

@@ -162,7 +162,8 @@ fn records(
     Ok(points)
 }
 
-fn parse_ply(bytes: &[u8]) -> Result<Vec<[f32; 3]>, String> {
+/// The vertices of a PLY file's bytes.
+pub fn parse_ply(bytes: &[u8]) -> Result<Vec<[f32; 3]>, String> {
     if !bytes.starts_with(b"ply") {
         return Err("not a PLY file (no `ply` magic)".into());
     }
@@ -205,7 +206,8 @@ fn parse_ply(bytes: &[u8]) -> Result<Vec<[f32; 3]>, String> {
     records(body, count, &fields, binary)
 }
 
-fn parse_pcd(bytes: &[u8]) -> Result<Vec<[f32; 3]>, String> {
+/// The points of a PCD file's bytes.
+pub fn parse_pcd(bytes: &[u8]) -> Result<Vec<[f32; 3]>, String> {
     let (lines, body) = header(bytes, "DATA")?;
     let mut names: Vec<String> = Vec::new();
     let mut sizes: Vec<usize> = Vec::new();

@@ -363,6 +363,8 @@ async fn main() -> anyhow::Result<()> {
                         "p50_ms": report.p50_ms, "p90_ms": report.p90_ms, "p99_ms": report.p99_ms,
                         "max_ms": report.max_ms, "server_p50_ms": report.server_p50_ms,
                         "mean_grasps": report.mean_grasps, "first_error": report.first_error,
+                        "errors_by_code": report.errors_by_code, "error_p50_ms": report.error_p50_ms,
+                        "error_p99_ms": report.error_p99_ms, "error_max_ms": report.error_max_ms,
                     })
                 );
             } else {
@@ -382,7 +384,10 @@ async fn main() -> anyhow::Result<()> {
                 );
             }
             if let Some(e) = report.first_error {
-                eprintln!("first error: {e}");
+                eprintln!(
+                    "first error: {e}; errors by code {:?}, time to the error p50 {:.2} ms, p99 {:.2} ms",
+                    report.errors_by_code, report.error_p50_ms, report.error_p99_ms
+                );
             }
             let replicas = client.replicas();
             if replicas.len() > 1 {

@@ -64,7 +64,16 @@ struct Camera {
 
 fn read_camera(camera_json: &Path) -> Result<Camera> {
     let text = std::fs::read_to_string(camera_json).map_err(|e| input_error(camera_json, e.to_string()))?;
-    let json: Value = serde_json::from_str(&text).map_err(|e| input_error(camera_json, e.to_string()))?;
+    parse_camera(&text, camera_json)
+}
+
+/// Checks a camera JSON's text as [`SceneFiles`] reads it (`name` labels errors).
+pub fn check_camera_json(text: &str, name: &Path) -> Result<()> {
+    parse_camera(text, name).map(|_| ())
+}
+
+fn parse_camera(text: &str, camera_json: &Path) -> Result<Camera> {
+    let json: Value = serde_json::from_str(text).map_err(|e| input_error(camera_json, e.to_string()))?;
     let p = numbers(&json, &["world_from_camera", "position"], 3, camera_json)?;
     let q = numbers(&json, &["world_from_camera", "orientation"], 4, camera_json)?;
     let pose = pb::Pose {
@@ -104,24 +113,27 @@ fn read_camera(camera_json: &Path) -> Result<Camera> {
 
 /// Reads a 16-bit grey PNG: `(width, height, millimetres)`.
 pub fn read_depth_png(path: &Path) -> Result<(u32, u32, Vec<u16>)> {
-    let file = std::fs::File::open(path).map_err(|e| input_error(path, e.to_string()))?;
-    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+    let bytes = std::fs::read(path).map_err(|e| input_error(path, e.to_string()))?;
+    decode_depth_png(&bytes).map_err(|e| input_error(path, e))
+}
+
+/// Decodes a 16-bit grey PNG's bytes: `(width, height, millimetres)`. The
+/// decoder's memory limit (64 MiB) bounds what a hostile header can ask for.
+pub fn decode_depth_png(bytes: &[u8]) -> Result<(u32, u32, Vec<u16>), String> {
+    let mut reader = png::Decoder::new(std::io::Cursor::new(bytes))
         .read_info()
-        .map_err(|e| input_error(path, e.to_string()))?;
+        .map_err(|e| e.to_string())?;
     let (width, height, color, depth) = {
         let info = reader.info();
         (info.width, info.height, info.color_type, info.bit_depth)
     };
     if color != png::ColorType::Grayscale || depth != png::BitDepth::Sixteen {
-        return Err(input_error(
-            path,
-            format!("a depth PNG must be 16-bit grey (millimetres), this one is {color:?} {depth:?}"),
+        return Err(format!(
+            "a depth PNG must be 16-bit grey (millimetres), this one is {color:?} {depth:?}"
         ));
     }
     let mut buffer = vec![0u8; reader.output_buffer_size().unwrap_or(0)];
-    let frame = reader
-        .next_frame(&mut buffer)
-        .map_err(|e| input_error(path, e.to_string()))?;
+    let frame = reader.next_frame(&mut buffer).map_err(|e| e.to_string())?;
     // PNG stores 16-bit samples big-endian.
     let mm = buffer[..frame.buffer_size()]
         .chunks_exact(2)

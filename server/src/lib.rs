@@ -18,6 +18,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod admission;
 pub mod backend;
 pub mod batcher;
 pub mod convert;

@@ -11,6 +11,7 @@ use tonic::{
 };
 
 use crate::{
+    admission::AdmissionLayer,
     backend::{self, LoadedNet},
     error::{Error, Result},
     metrics::{self, Metrics},
@@ -98,6 +99,7 @@ pub async fn start_with_net(settings: Settings, net: LoadedNet) -> Result<Runnin
         "mvgrasp-server listening"
     );
     let health_listen = settings.security.health_listen;
+    let admission = AdmissionLayer::new(settings.limits.max_in_flight, Arc::clone(&metrics));
     let auth = BearerAuth::new(security.token, metrics.unauthenticated.clone());
     let state = Arc::new(PlannerState::new(settings, net, metrics)?);
 
@@ -157,6 +159,7 @@ pub async fn start_with_net(settings: Settings, net: LoadedNet) -> Result<Runnin
             .initial_stream_window_size(HTTP2_WINDOW_BYTES)
             .initial_connection_window_size(2 * HTTP2_WINDOW_BYTES)
             .layer(tower::util::MapResponseLayer::new(rewrite_limit_status))
+            .layer(admission)
             .add_service(health_service)
             .add_service(reflection)
             .add_service(planner)

@@ -242,8 +242,8 @@ async fn a_frozen_planner_is_given_up_at_the_deadline() {
         "{err}"
     );
     assert!(
-        waited >= Duration::from_secs(1) && waited < Duration::from_secs(3),
-        "gave up after {waited:?}"
+        waited >= Duration::from_secs(1) && waited < Duration::from_secs(10),
+        "gave up after {waited:?}: the deadline is 1 s (the upper bound only catches a hang)"
     );
     // Thawed, it answers again on the same client.
     assert!(client.plan(scene.request()).await.is_ok());

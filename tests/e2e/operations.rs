@@ -238,3 +238,44 @@ async fn a_second_client_connects_to_a_running_server() {
     assert_eq!(info.outputs, ["quality", "cos2phi", "sin2phi", "width"]);
     server.shutdown().await.unwrap();
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn calls_over_the_in_flight_limit_are_refused_at_once() {
+    let mut s = settings(BackendKind::Onnx);
+    s.limits.max_in_flight = 2;
+    s.batching.max_wait_ms = 0.0;
+    let (server, client) = start_with(s, slow_net(Duration::from_millis(400))).await;
+    let calls: Vec<_> = (0..8)
+        .map(|_| {
+            let mut c = client.clone();
+            tokio::spawn(async move { c.plan(frame()).await.map(|_| ()) })
+        })
+        .collect();
+    let mut answered = 0;
+    let mut refused = Vec::new();
+    for call in calls {
+        match call.await.unwrap() {
+            Ok(()) => answered += 1,
+            Err(Error::Rpc(status)) => {
+                assert_eq!(status.code(), Code::ResourceExhausted, "{}", status.message());
+                assert!(status.message().contains("limit is 2"), "{}", status.message());
+                refused.push(status);
+            }
+            Err(other) => panic!("{other}"),
+        }
+    }
+    assert!(answered >= 2, "{answered} answered");
+    assert_eq!(answered + refused.len(), 8);
+    assert!(!refused.is_empty());
+    let metrics = scrape(server.metrics_addr.unwrap()).await;
+    assert_eq!(
+        sample(
+            &metrics,
+            "mvgrasp_requests_total{code=\"ResourceExhausted\",method=\"PlanGrasps\"}"
+        ),
+        refused.len() as f64
+    );
+    // Capacity comes back as calls end.
+    assert!(client.clone().plan(frame()).await.is_ok());
+    server.shutdown().await.unwrap();
+}
