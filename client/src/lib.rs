@@ -69,7 +69,8 @@ pub enum Error {
 /// Shorthand used across the crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
-/// How long past a call's deadline the client waits for the server's answer.
+/// How long past a call's deadline the client waits before its own timer
+/// gives up (tonic's gives up at the deadline; this is the backstop).
 const CLIENT_DEADLINE_GRACE: Duration = Duration::from_millis(250);
 
 /// Largest response accepted (debug views can be large).
@@ -202,19 +203,43 @@ fn endpoint(address: &str, credentials: &Credentials) -> Result<Endpoint> {
     Ok(endpoint)
 }
 
-/// Whether a failed call may be sent again to another replica: the replica
-/// could not be reached or refused it while shutting down (UNAVAILABLE), or
-/// its connection broke or closed under the call (tonic reports UNKNOWN or
-/// CANCELLED with the transport error as the source). `PlanGrasps` and the
-/// other unary calls are idempotent, so a call the lost replica may have
-/// finished is safe to send again.
-fn retryable(status: &tonic::Status) -> bool {
+/// What a failed call's status means, in gRPC's terms. tonic reports its own
+/// deadline as CANCELLED ("Timeout expired"): that is DEADLINE_EXCEEDED. A
+/// call the connection dropped before an answer (hyper's "operation was
+/// canceled" when the server closed or sent GOAWAY first; UNKNOWN with the
+/// transport error as its source when the connection broke) is UNAVAILABLE,
+/// as grpc-core reports it. `endpoint` and `timeout` go into the message.
+fn normalized(status: tonic::Status, endpoint: &str, timeout: Option<Duration>) -> tonic::Status {
+    let transport = || {
+        std::error::Error::source(&status)
+            .is_some_and(|e| e.downcast_ref::<tonic::transport::Error>().is_some())
+    };
     match status.code() {
-        tonic::Code::Unavailable => true,
-        tonic::Code::Unknown | tonic::Code::Cancelled => std::error::Error::source(status)
-            .is_some_and(|e| e.downcast_ref::<tonic::transport::Error>().is_some()),
-        _ => false,
+        tonic::Code::Cancelled if status.message() == "Timeout expired" => {
+            tonic::Status::deadline_exceeded(format!(
+                "no answer from {endpoint} within {:?}",
+                timeout.unwrap_or_default()
+            ))
+        }
+        tonic::Code::Cancelled => tonic::Status::unavailable(format!(
+            "{endpoint} closed the connection before answering ({})",
+            status.message()
+        )),
+        tonic::Code::Unknown if transport() => tonic::Status::unavailable(format!(
+            "the connection to {endpoint} broke under the call ({})",
+            status.message()
+        )),
+        _ => status,
     }
+}
+
+/// Whether a failed call may be sent again to another replica: the replica
+/// could not be reached, refused it while shutting down, or its connection
+/// closed or broke under the call (all UNAVAILABLE once [`normalized`]).
+/// `PlanGrasps` and the other unary calls are idempotent, so a call the lost
+/// replica may have finished is safe to send again.
+fn retryable(status: &tonic::Status) -> bool {
+    status.code() == tonic::Code::Unavailable
 }
 
 impl PlannerClient {
@@ -398,34 +423,24 @@ impl PlannerClient {
         }
     }
 
-    /// `call` within `timeout`: a planner that answers nothing (a stopped
-    /// process, a dead host behind a live connection) ends in
-    /// DEADLINE_EXCEEDED naming the replica. tonic gives up at the deadline
-    /// itself but says CANCELLED ("Timeout expired"); the tokio timer is the
-    /// backstop.
+    /// `call` within `timeout`, its failure [`normalized`]. tonic gives up at
+    /// the deadline itself; the tokio timer is the backstop for a planner
+    /// that answers nothing (a stopped process, a dead host behind a live
+    /// connection).
     async fn within<R>(
         &self,
         timeout: Option<Duration>,
         replica: usize,
         call: impl Future<Output = Result<tonic::Response<R>, tonic::Status>>,
     ) -> Result<tonic::Response<R>, tonic::Status> {
-        let Some(t) = timeout else {
-            return call.await;
+        let endpoint = &self.pool.endpoints[replica];
+        let answer = match timeout {
+            None => call.await,
+            Some(t) => tokio::time::timeout(t + CLIENT_DEADLINE_GRACE, call)
+                .await
+                .unwrap_or_else(|_| Err(tonic::Status::cancelled("Timeout expired"))),
         };
-        let started = Instant::now();
-        let expired = || {
-            tonic::Status::deadline_exceeded(format!(
-                "no answer from {} within {t:?}",
-                self.pool.endpoints[replica]
-            ))
-        };
-        match tokio::time::timeout(t + CLIENT_DEADLINE_GRACE, call).await {
-            Err(_) => Err(expired()),
-            Ok(Err(status)) if status.code() == tonic::Code::Cancelled && started.elapsed() >= t => {
-                Err(expired())
-            }
-            Ok(answer) => answer,
-        }
+        answer.map_err(|status| normalized(status, endpoint, timeout))
     }
 
     /// Plans grasps for one frame.
@@ -449,6 +464,7 @@ impl PlannerClient {
                 Ok(response.into_inner())
             }
             Err(status) => {
+                let status = normalized(status, &self.pool.endpoints[i], None);
                 if retryable(&status) {
                     turns.mark_unavailable(i);
                 }
@@ -485,16 +501,26 @@ mod tests {
 
     #[test]
     fn only_unavailable_and_broken_connections_are_retried() {
-        assert!(retryable(&tonic::Status::unavailable("shutting down")));
+        let t = Some(Duration::from_millis(5));
+        let seen = |status| normalized(status, "http://a:1", t);
+        let deadline = seen(tonic::Status::cancelled("Timeout expired"));
+        assert_eq!(deadline.code(), tonic::Code::DeadlineExceeded);
+        assert!(deadline.message().contains("http://a:1") && deadline.message().contains("5ms"));
+        assert!(!retryable(&deadline));
+        let dropped = seen(tonic::Status::cancelled("operation was canceled"));
+        assert_eq!(dropped.code(), tonic::Code::Unavailable, "{dropped}");
+        assert!(retryable(&dropped));
+        assert!(retryable(&seen(tonic::Status::unavailable("shutting down"))));
         for code in [
             tonic::Code::InvalidArgument,
             tonic::Code::DeadlineExceeded,
             tonic::Code::ResourceExhausted,
             tonic::Code::Internal,
             tonic::Code::Unknown,
-            tonic::Code::Cancelled,
         ] {
-            assert!(!retryable(&tonic::Status::new(code, "refused")), "{code:?}");
+            let status = seen(tonic::Status::new(code, "refused"));
+            assert_eq!(status.code(), code);
+            assert!(!retryable(&status), "{code:?}");
         }
     }
 }

@@ -111,6 +111,9 @@ fn parse_camera(text: &str, camera_json: &Path) -> Result<Camera> {
     })
 }
 
+/// Most pixels of a depth PNG (8192 x 8192; the server takes 4096 x 4096 by default).
+pub const MAX_DEPTH_PIXELS: u64 = 8192 * 8192;
+
 /// Reads a 16-bit grey PNG: `(width, height, millimetres)`.
 pub fn read_depth_png(path: &Path) -> Result<(u32, u32, Vec<u16>)> {
     let bytes = std::fs::read(path).map_err(|e| input_error(path, e.to_string()))?;
@@ -130,6 +133,13 @@ pub fn decode_depth_png(bytes: &[u8]) -> Result<(u32, u32, Vec<u16>), String> {
     if color != png::ColorType::Grayscale || depth != png::BitDepth::Sixteen {
         return Err(format!(
             "a depth PNG must be 16-bit grey (millimetres), this one is {color:?} {depth:?}"
+        ));
+    }
+    // The header alone sets the buffer: bound it before allocating.
+    let pixels = u64::from(width) * u64::from(height);
+    if pixels > MAX_DEPTH_PIXELS {
+        return Err(format!(
+            "{width}x{height} pixels: more than the {MAX_DEPTH_PIXELS} a depth image may have"
         ));
     }
     let mut buffer = vec![0u8; reader.output_buffer_size().unwrap_or(0)];
@@ -187,5 +197,27 @@ impl SceneFiles {
             workspace: self.workspace,
             ..Default::default()
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Found by fuzzing (`fuzz/`, target `client_files`): a 238 x 4278190086
+    /// header asked for 2 TB before the first pixel was read.
+    #[test]
+    fn a_huge_png_header_is_an_error_not_an_allocation() {
+        let crash: &[u8] = include_bytes!("../../fuzz/regressions/client_files/png-huge-header.png");
+        let err = decode_depth_png(crash).unwrap_err();
+        assert!(err.contains("more than"), "{err}");
+    }
+
+    #[test]
+    fn a_small_depth_png_decodes() {
+        let seed: &[u8] = include_bytes!("../../fuzz/seeds/client_files/depth.png");
+        let (w, h, mm) = decode_depth_png(seed).unwrap();
+        assert_eq!((w, h, mm.len()), (8, 6, 48));
+        assert_eq!(mm[0], 800);
     }
 }

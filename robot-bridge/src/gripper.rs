@@ -18,6 +18,17 @@ pub enum GripOutcome {
     AtPosition,
 }
 
+/// The value of `var` in the gripper's answer to `GET var` (`"OBJ 2"`).
+pub fn parse_get_reply(reply: &str, var: &str) -> Result<u32> {
+    let mut parts = reply.split_whitespace();
+    match (parts.next(), parts.next().map(str::parse::<u32>), parts.next()) {
+        (Some(name), Some(Ok(value)), None) if name == var => Ok(value),
+        _ => Err(Error::Protocol(format!(
+            "gripper answered `{reply}` to GET {var}"
+        ))),
+    }
+}
+
 /// The opening of a 2F-140 for a position register value (0 = open 140 mm,
 /// 255 = closed), linear; calibrate per gripper for better than a few mm.
 pub fn width_of_position(position: u8, max_width_m: f64) -> f64 {
@@ -76,13 +87,7 @@ impl Gripper {
 
     fn get(&mut self, var: &str) -> Result<u32> {
         let reply = self.exchange(&format!("GET {var}"))?;
-        let mut parts = reply.split_whitespace();
-        match (parts.next(), parts.next().map(str::parse::<u32>)) {
-            (Some(name), Some(Ok(value))) if name == var => Ok(value),
-            _ => Err(Error::Protocol(format!(
-                "gripper answered `{reply}` to GET {var}"
-            ))),
-        }
+        parse_get_reply(&reply, var)
     }
 
     /// Activates the gripper and waits until it reports active (`STA 3`).

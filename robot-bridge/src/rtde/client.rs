@@ -164,25 +164,35 @@ impl RtdeClient {
     pub fn next_state(&mut self) -> Result<RobotState> {
         loop {
             let (kind, payload) = read_packet(&mut self.stream)?;
-            if kind != packet::DATA_PACKAGE {
-                continue; // text messages
+            if let Some(state) = RobotState::from_packet(kind, &payload, self.recipe_id)? {
+                return Ok(state);
             }
-            let mut r = Reader::new(&payload);
-            if r.u8()? != self.recipe_id {
-                continue;
-            }
-            let vector = |r: &mut Reader<'_>| -> Result<[f64; 6]> {
-                Ok([r.f64()?, r.f64()?, r.f64()?, r.f64()?, r.f64()?, r.f64()?])
-            };
-            // The layout was checked against STATE_TYPES at set-up.
-            return Ok(RobotState {
-                timestamp_s: r.f64()?,
-                actual_q: vector(&mut r)?,
-                actual_tcp_pose: vector(&mut r)?,
-                robot_mode: r.i32()?,
-                safety_mode: r.i32()?,
-                runtime_state: r.u32()?,
-            });
         }
+    }
+}
+
+impl RobotState {
+    /// The state in a packet of `kind`, if it is a data package of
+    /// `recipe_id` (the layout checked against `STATE_TYPES` at set-up);
+    /// `None` for other packets; an error for a package cut short.
+    pub fn from_packet(kind: u8, payload: &[u8], recipe_id: u8) -> Result<Option<Self>> {
+        if kind != packet::DATA_PACKAGE {
+            return Ok(None); // text messages
+        }
+        let mut r = Reader::new(payload);
+        if r.u8()? != recipe_id {
+            return Ok(None);
+        }
+        let vector = |r: &mut Reader<'_>| -> Result<[f64; 6]> {
+            Ok([r.f64()?, r.f64()?, r.f64()?, r.f64()?, r.f64()?, r.f64()?])
+        };
+        Ok(Some(Self {
+            timestamp_s: r.f64()?,
+            actual_q: vector(&mut r)?,
+            actual_tcp_pose: vector(&mut r)?,
+            robot_mode: r.i32()?,
+            safety_mode: r.i32()?,
+            runtime_state: r.u32()?,
+        }))
     }
 }
