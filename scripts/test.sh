@@ -68,6 +68,8 @@ if ! PYTHONPATH="$k8sdeps" python3 -c "import kubernetes_validate, checkov, yaml
         | grep -v -e "dependency resolver" -e "which is incompatible" || true
 fi
 PYTHONPATH="$k8sdeps" python3 deploy/k8s/check.py
+echo "== fuzzing, a short pass (20,000 inputs per target; scripts/fuzz.sh alone runs 1,000,000): requests through planning, the client's file readers, the bridge's protocols"
+scripts/fuzz.sh 20000
 echo "== physics referee (MuJoCo, robosuite's UR5e + 2F-140, objects from PyPI wheels): self-checks, then the quick suite against a server"
 export MVGRASP_ROBOT_BRIDGE=target/debug/robot-bridge
 scripts/referee.sh --self-check
