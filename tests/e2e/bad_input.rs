@@ -28,6 +28,30 @@ fn cloud(xyz: Vec<u8>, frame: i32) -> Option<pb::plan_grasps_request::Sensor> {
     }))
 }
 
+fn gripper(max_width_m: f64, finger_width_m: f64, finger_depth_m: f64) -> Option<pb::Gripper> {
+    Some(pb::Gripper {
+        max_width_m,
+        finger_width_m,
+        finger_depth_m,
+    })
+}
+
+fn workspace(min: [f64; 3], max: [f64; 3]) -> Option<pb::Workspace> {
+    let v = |[x, y, z]: [f64; 3]| Some(pb::Vector3 { x, y, z });
+    Some(pb::Workspace {
+        min: v(min),
+        max: v(max),
+    })
+}
+
+fn cone(axis: [f64; 3], half_angle_rad: f64) -> Option<pb::ApproachCone> {
+    let [x, y, z] = axis;
+    Some(pb::ApproachCone {
+        axis: Some(pb::Vector3 { x, y, z }),
+        half_angle_rad,
+    })
+}
+
 fn cases() -> Vec<(&'static str, Code, &'static str, Edit)> {
     let v = |x, y, z| Some(pb::Vector3 { x, y, z });
     vec![
@@ -168,10 +192,7 @@ fn cases() -> Vec<(&'static str, Code, &'static str, Edit)> {
             Code::InvalidArgument,
             "workspace",
             Box::new(move |r| {
-                r.workspace = Some(pb::Workspace {
-                    min: v(1.0, 1.0, 1.0),
-                    max: v(-1.0, -1.0, -1.0),
-                });
+                r.workspace = workspace([1.0, 1.0, 1.0], [-1.0, -1.0, -1.0]);
             }),
         ),
         (
@@ -190,10 +211,7 @@ fn cases() -> Vec<(&'static str, Code, &'static str, Edit)> {
             Code::InvalidArgument,
             "workspace",
             Box::new(move |r| {
-                r.workspace = Some(pb::Workspace {
-                    min: v(5.0, 5.0, 5.0),
-                    max: v(6.0, 6.0, 6.0),
-                });
+                r.workspace = workspace([5.0, 5.0, 5.0], [6.0, 6.0, 6.0]);
             }),
         ),
         (
@@ -201,11 +219,7 @@ fn cases() -> Vec<(&'static str, Code, &'static str, Edit)> {
             Code::InvalidArgument,
             "gripper.max_width_m",
             Box::new(|r| {
-                r.gripper = Some(pb::Gripper {
-                    max_width_m: -0.1,
-                    finger_width_m: 0.02,
-                    finger_depth_m: 0.04,
-                });
+                r.gripper = gripper(-0.1, 0.02, 0.04);
             }),
         ),
         (
@@ -241,31 +255,13 @@ fn cases() -> Vec<(&'static str, Code, &'static str, Edit)> {
             "approach cone with a zero axis",
             Code::InvalidArgument,
             "approach_cone.axis",
-            Box::new(|r| {
-                r.approach_cone = Some(pb::ApproachCone {
-                    axis: Some(pb::Vector3 {
-                        x: 0.0,
-                        y: 0.0,
-                        z: 0.0,
-                    }),
-                    half_angle_rad: 1.0,
-                })
-            }),
+            Box::new(|r| r.approach_cone = cone([0.0, 0.0, 0.0], 1.0)),
         ),
         (
             "approach cone of no angle",
             Code::InvalidArgument,
             "approach_cone.half_angle_rad",
-            Box::new(|r| {
-                r.approach_cone = Some(pb::ApproachCone {
-                    axis: Some(pb::Vector3 {
-                        x: 0.0,
-                        y: 0.0,
-                        z: -1.0,
-                    }),
-                    half_angle_rad: f64::NAN,
-                })
-            }),
+            Box::new(|r| r.approach_cone = cone([0.0, 0.0, -1.0], f64::NAN)),
         ),
         (
             "too many pixels",
@@ -462,28 +458,22 @@ fn edges() -> Vec<(&'static str, Edit)> {
         (
             "workspace NaN",
             Box::new(move |r| {
-                r.workspace = Some(pb::Workspace {
-                    min: v(f64::NAN, -1.0, -1.0),
-                    max: v(1.0, 1.0, 1.0),
-                });
+                r.workspace = workspace([f64::NAN, -1.0, -1.0], [1.0, 1.0, 1.0]);
             }),
         ),
         (
             "workspace of zero volume",
             Box::new(move |r| {
-                r.workspace = Some(pb::Workspace {
-                    min: v(0.0, 0.0, 0.0),
-                    max: v(0.0, 0.0, 0.0),
-                });
+                r.workspace = workspace([0.0, 0.0, 0.0], [0.0, 0.0, 0.0]);
             }),
         ),
         (
             "workspace infinite",
             Box::new(move |r| {
-                r.workspace = Some(pb::Workspace {
-                    min: v(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY),
-                    max: v(f64::INFINITY, f64::INFINITY, f64::INFINITY),
-                });
+                r.workspace = workspace(
+                    [f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY],
+                    [f64::INFINITY, f64::INFINITY, f64::INFINITY],
+                );
             }),
         ),
         (
@@ -505,41 +495,25 @@ fn edges() -> Vec<(&'static str, Edit)> {
         (
             "gripper NaN",
             Box::new(|r| {
-                r.gripper = Some(pb::Gripper {
-                    max_width_m: f64::NAN,
-                    finger_width_m: 0.02,
-                    finger_depth_m: 0.04,
-                });
+                r.gripper = gripper(f64::NAN, 0.02, 0.04);
             }),
         ),
         (
             "gripper infinite",
             Box::new(|r| {
-                r.gripper = Some(pb::Gripper {
-                    max_width_m: f64::INFINITY,
-                    finger_width_m: f64::INFINITY,
-                    finger_depth_m: f64::INFINITY,
-                });
+                r.gripper = gripper(f64::INFINITY, f64::INFINITY, f64::INFINITY);
             }),
         ),
         (
             "gripper of zero fingers",
             Box::new(|r| {
-                r.gripper = Some(pb::Gripper {
-                    max_width_m: 0.14,
-                    finger_width_m: 0.0,
-                    finger_depth_m: 0.0,
-                });
+                r.gripper = gripper(0.14, 0.0, 0.0);
             }),
         ),
         (
             "gripper 100 m wide",
             Box::new(|r| {
-                r.gripper = Some(pb::Gripper {
-                    max_width_m: 100.0,
-                    finger_width_m: 0.02,
-                    finger_depth_m: 0.04,
-                });
+                r.gripper = gripper(100.0, 0.02, 0.04);
             }),
         ),
         ("max_grasps u32::MAX", Box::new(|r| r.max_grasps = u32::MAX)),
@@ -557,42 +531,15 @@ fn edges() -> Vec<(&'static str, Edit)> {
         ),
         (
             "approach cone wider than a sphere",
-            Box::new(|r| {
-                r.approach_cone = Some(pb::ApproachCone {
-                    axis: Some(pb::Vector3 {
-                        x: 0.0,
-                        y: 0.0,
-                        z: -1.0,
-                    }),
-                    half_angle_rad: 10.0,
-                })
-            }),
+            Box::new(|r| r.approach_cone = cone([0.0, 0.0, -1.0], 10.0)),
         ),
         (
             "approach cone of negative angle",
-            Box::new(|r| {
-                r.approach_cone = Some(pb::ApproachCone {
-                    axis: Some(pb::Vector3 {
-                        x: 0.0,
-                        y: 0.0,
-                        z: -1.0,
-                    }),
-                    half_angle_rad: -0.5,
-                })
-            }),
+            Box::new(|r| r.approach_cone = cone([0.0, 0.0, -1.0], -0.5)),
         ),
         (
             "approach cone with an infinite axis",
-            Box::new(|r| {
-                r.approach_cone = Some(pb::ApproachCone {
-                    axis: Some(pb::Vector3 {
-                        x: f64::INFINITY,
-                        y: 0.0,
-                        z: -1.0,
-                    }),
-                    half_angle_rad: 0.5,
-                })
-            }),
+            Box::new(|r| r.approach_cone = cone([f64::INFINITY, 0.0, -1.0], 0.5)),
         ),
         (
             "request id of 100 kB",
