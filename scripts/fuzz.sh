@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Fuzzes every target of fuzz/ (libFuzzer through cargo-fuzz) on the stable
-# toolchain: `scripts/fuzz.sh [RUNS]` (default 1,000,000 per target; CI runs
+# toolchain: `scripts/fuzz.sh [RUNS]` (default 1,000,000 per target, the
+# targets in FUZZ_TARGETS or all; CI runs
 # a short pass). Seeds are in fuzz/seeds/<target>, inputs that once crashed
 # in fuzz/regressions/<target> (each also a unit test); the corpus grows in
 # fuzz/corpus/<target> (not committed); a crash lands in fuzz/artifacts/ and
@@ -14,7 +15,7 @@ if ! cargo fuzz --version >/dev/null 2>&1; then
     cargo install cargo-fuzz --locked
 fi
 export RUSTC_BOOTSTRAP=1
-for target in plan_request client_files bridge_protocols; do
+for target in ${FUZZ_TARGETS:-plan_request client_files bridge_protocols}; do
     mkdir -p "fuzz/corpus/$target"
     echo "== fuzz $target: $runs runs"
     start=$(date +%s)

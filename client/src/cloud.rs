@@ -112,9 +112,15 @@ fn records(
             .ok_or_else(|| format!("no `{axis}` field"))
     };
     let (ix, iy, iz) = (index("x")?, index("y")?, index("z")?);
-    let mut points = Vec::with_capacity(count.min(50_000_000));
+    if let Some((name, _)) = fields.iter().find(|(_, s)| ![1, 2, 4, 8].contains(&s.size())) {
+        return Err(format!("field {name}: size must be 1, 2, 4 or 8 bytes"));
+    }
+    // The header's count is a claim: reserve only what the body can hold
+    // (a binary record takes `stride` bytes, a text one at least 6: "0 0 0\n").
+    let stride: usize = fields.iter().map(|(_, s)| s.size()).sum();
+    let fits = body.len() / if binary { stride } else { 6 };
+    let mut points = Vec::with_capacity(count.min(fits));
     if binary {
-        let stride: usize = fields.iter().map(|(_, s)| s.size()).sum();
         let offsets: Vec<usize> = fields
             .iter()
             .scan(0, |acc, (_, s)| {
@@ -123,10 +129,10 @@ fn records(
                 Some(at)
             })
             .collect();
-        if body.len() < stride * count {
+        let needed = stride.checked_mul(count).unwrap_or(usize::MAX);
+        if body.len() < needed {
             return Err(format!(
-                "{count} records of {stride} bytes need {} bytes, the file has {}",
-                stride * count,
+                "{count} records of {stride} bytes need more than the {} bytes the file has",
                 body.len()
             ));
         }
@@ -206,6 +212,10 @@ pub fn parse_ply(bytes: &[u8]) -> Result<Vec<[f32; 3]>, String> {
     records(body, count, &fields, binary)
 }
 
+/// Most values one PCD field may hold (`COUNT`; descriptors such as VFH
+/// hold 308).
+const MAX_FIELD_COUNT: usize = 1024;
+
 /// The points of a PCD file's bytes.
 pub fn parse_pcd(bytes: &[u8]) -> Result<Vec<[f32; 3]>, String> {
     let (lines, body) = header(bytes, "DATA")?;
@@ -249,7 +259,13 @@ pub fn parse_pcd(bytes: &[u8]) -> Result<Vec<[f32; 3]>, String> {
             'U' => Scalar::U(sizes[i]),
             t => return Err(format!("field {name}: TYPE {t:?}")),
         };
-        for k in 0..counts.get(i).copied().unwrap_or(1) {
+        let count = counts.get(i).copied().unwrap_or(1);
+        if count == 0 || count > MAX_FIELD_COUNT {
+            return Err(format!(
+                "field {name}: COUNT {count} is not in 1..={MAX_FIELD_COUNT}"
+            ));
+        }
+        for k in 0..count {
             let label = if k == 0 {
                 name.clone()
             } else {
@@ -286,6 +302,23 @@ mod tests {
                 .unwrap_err()
                 .contains("need")
         );
+    }
+
+    /// Headers that claim more than the body holds, found by fuzzing (`fuzz/`,
+    /// target `client_files`) or written after what it found.
+    #[test]
+    fn header_claims_are_errors_not_allocations() {
+        let huge_count: &[u8] = include_bytes!("../../fuzz/regressions/client_files/pcd-huge-count.pcd");
+        assert!(parse_pcd(huge_count).is_err());
+        let count =
+            b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 4000000000\nPOINTS 1\nDATA ascii\n1 2 3\n";
+        assert!(parse_pcd(count).unwrap_err().contains("COUNT"));
+        let zero_size = b"FIELDS x y z\nSIZE 0 0 0\nTYPE F F F\nPOINTS 1\nDATA binary\n";
+        assert!(parse_pcd(zero_size).unwrap_err().contains("size"));
+        let overflow = b"FIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nPOINTS 18446744073709551615\nDATA binary\n";
+        assert!(parse_pcd(overflow).unwrap_err().contains("need more"));
+        let ply = b"ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n";
+        assert!(parse_ply(ply).unwrap_err().contains("declared"));
     }
 
     #[test]
