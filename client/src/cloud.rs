@@ -129,7 +129,7 @@ fn records(
                 Some(at)
             })
             .collect();
-        let needed = stride.checked_mul(count).unwrap_or(usize::MAX);
+        let needed = stride.saturating_mul(count);
         if body.len() < needed {
             return Err(format!(
                 "{count} records of {stride} bytes need more than the {} bytes the file has",
