@@ -18,6 +18,12 @@ use std::f64::consts::PI;
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
+mod dual_arm;
+mod urscript;
+
+pub use dual_arm::{ArmCell, plan_pick_multi};
+pub use urscript::urscript;
+
 use crate::collision::{ArmModel, BoxObstacle, CollisionWorld};
 use crate::error::{Error, Result};
 use crate::ur5e::{Joints, Ur5e, check_joints, check_pose, max_joint_move};
@@ -185,60 +191,6 @@ pub fn plan_pick(
             }
             Err(e @ Error::InvalidInput { .. }) => return Err(e),
             Err(e) => last_error = e,
-        }
-    }
-    Err(last_error)
-}
-
-/// One arm of a multi-arm cell: its kinematics, configuration and joints now.
-#[derive(Debug, Clone)]
-pub struct ArmCell {
-    /// Name for messages ("left", "right").
-    pub name: String,
-    /// Kinematics and limits.
-    pub arm: Ur5e,
-    /// Calibration, obstacles and limits of this arm.
-    pub config: PickConfig,
-    /// Its joints now.
-    pub current: Joints,
-}
-
-/// Dual (or more) arm: for the best-ranked grasp that any arm can pick, the
-/// arm with the cheaper motion (smaller largest joint move to the
-/// pre-grasp). Returns the arm's index and its plan.
-pub fn plan_pick_multi(
-    arms: &[ArmCell],
-    grasps: &[GraspTarget],
-    scene: &[BoxObstacle],
-) -> Result<(usize, PickPlan)> {
-    let mut last_error = Error::Unreachable("no arm given".to_owned());
-    for (index, grasp) in grasps.iter().enumerate() {
-        let mut best: Option<(f64, usize, PickPlan)> = None;
-        for (a, cell) in arms.iter().enumerate() {
-            match plan_pick(
-                &cell.arm,
-                &cell.config,
-                std::slice::from_ref(grasp),
-                scene,
-                &cell.current,
-            ) {
-                Ok(mut plan) => {
-                    plan.grasp_index = index;
-                    let first = plan.steps.iter().find_map(|s| match s {
-                        Step::MoveJ { joints, .. } => Some(*joints),
-                        _ => None,
-                    });
-                    let cost = first.map_or(f64::INFINITY, |q| max_joint_move(&cell.current, &q));
-                    if best.as_ref().is_none_or(|(c, _, _)| cost < *c) {
-                        best = Some((cost, a, plan));
-                    }
-                }
-                Err(e @ Error::InvalidInput { .. }) => return Err(e),
-                Err(e) => last_error = Error::Unreachable(format!("{} arm: {e}", cell.name)),
-            }
-        }
-        if let Some((_, a, plan)) = best {
-            return Ok((a, plan));
         }
     }
     Err(last_error)
@@ -460,66 +412,12 @@ fn linear(
     Ok((q, path))
 }
 
-/// The arm's part of a pick as a URScript program (gripper steps become
-/// comments: the gripper is driven over its own socket).
-pub fn urscript(plan: &PickPlan, config: &PickConfig) -> String {
-    let t = config.flange_from_tcp;
-    let mut out = String::from("def mvgrasp_pick():\n");
-    out.push_str(&format!("  set_tcp({})\n", pose_literal(&t)));
-    for step in &plan.steps {
-        match step {
-            Step::MoveJ { name, joints } => out.push_str(&format!(
-                "  # {name}\n  movej({}, a={:.3}, v={:.3})\n",
-                joints_literal(joints),
-                config.joint_accel,
-                config.joint_speed
-            )),
-            Step::MoveL {
-                name, base_from_tcp, ..
-            } => out.push_str(&format!(
-                "  # {name}\n  movel({}, a={:.3}, v={:.3})\n",
-                pose_literal(base_from_tcp),
-                config.tool_accel,
-                config.tool_speed
-            )),
-            Step::Gripper { name, close, width_m } => {
-                let action = if *close {
-                    "close".to_owned()
-                } else {
-                    format!("open to {:.0} mm", width_m * 1000.0)
-                };
-                out.push_str(&format!(
-                    "  # gripper: {name} ({action}), sent on the gripper socket\n"
-                ));
-            }
-        }
-    }
-    out.push_str("end\n");
-    out
-}
-
-fn joints_literal(q: &Joints) -> String {
-    format!(
-        "[{}]",
-        q.iter().map(|v| format!("{v:.6}")).collect::<Vec<_>>().join(", ")
-    )
-}
-
-/// URScript pose `p[x, y, z, rx, ry, rz]` (rotation vector).
-fn pose_literal(pose: &Isometry3<f64>) -> String {
-    let (p, r) = (pose.translation.vector, pose.rotation.scaled_axis());
-    format!(
-        "p[{:.6}, {:.6}, {:.6}, {:.6}, {:.6}, {:.6}]",
-        p.x, p.y, p.z, r.x, r.y, r.z
-    )
-}
-
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A top-down grasp 0.45 m in front of the base at table height 0.
-    fn top_grasp(x: f64, y: f64, z: f64) -> GraspTarget {
+    pub(super) fn top_grasp(x: f64, y: f64, z: f64) -> GraspTarget {
         GraspTarget {
             world_from_grasp: Isometry3::from_parts(
                 Translation3::new(x, y, z),
@@ -531,7 +429,7 @@ mod tests {
         }
     }
 
-    const HOME: Joints = [0.0, -PI / 2.0, PI / 2.0, -PI / 2.0, -PI / 2.0, 0.0];
+    pub(super) const HOME: Joints = [0.0, -PI / 2.0, PI / 2.0, -PI / 2.0, -PI / 2.0, 0.0];
 
     #[test]
     fn the_fingertips_meet_the_object_at_the_grasp() {
@@ -685,37 +583,6 @@ mod tests {
             ),
             "{err}"
         );
-    }
-
-    #[test]
-    fn each_grasp_goes_to_the_arm_that_reaches_it_more_cheaply() {
-        // Two arms 1.2 m apart along x, facing the same table.
-        let cell = |name: &str, x: f64| ArmCell {
-            name: name.to_owned(),
-            arm: Ur5e::default(),
-            config: PickConfig {
-                world_from_base: Isometry3::translation(x, 0.0, 0.0),
-                world_from_drop: Isometry3::from_parts(
-                    Translation3::new(x, -0.45, 0.35),
-                    UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
-                ),
-                ..PickConfig::default()
-            },
-            current: HOME,
-        };
-        let arms = [cell("left", -0.6), cell("right", 0.6)];
-        let (arm, _) = plan_pick_multi(&arms, &[top_grasp(-0.5, -0.45, 0.05)], &[]).unwrap();
-        assert_eq!(arm, 0, "left side -> left arm");
-        let (arm, _) = plan_pick_multi(&arms, &[top_grasp(0.5, -0.45, 0.05)], &[]).unwrap();
-        assert_eq!(arm, 1, "right side -> right arm");
-        // Out of both arms' reach first, then a reachable one: the second is picked.
-        let (arm, plan) = plan_pick_multi(
-            &arms,
-            &[top_grasp(3.0, 0.0, 0.05), top_grasp(0.5, -0.45, 0.05)],
-            &[],
-        )
-        .unwrap();
-        assert_eq!((arm, plan.grasp_index), (1, 1));
     }
 
     fn table() -> BoxObstacle {
