@@ -133,8 +133,11 @@ def overload(args):
     config = os.path.join(args.out, "overload.toml")
     with open(os.path.join(ROOT, "deploy/server.toml")) as f:
         text = f.read()
+    lowered, n = re.subn(r"^max_in_flight = \d+", "max_in_flight = 8", text, flags=re.M)
+    if n != 1:
+        raise RuntimeError("deploy/server.toml has no `max_in_flight = N` line to lower")
     with open(config, "w") as f:
-        f.write(re.sub(r"^max_in_flight = \d+", "max_in_flight = 8", text, flags=re.M))
+        f.write(lowered)
     server = Server(args, config)
     try:
         alone = bench(args, server, 8, 10)

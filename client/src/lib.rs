@@ -356,7 +356,8 @@ impl PlannerClient {
     /// is UNAVAILABLE (or a broken connection), to the other replicas in
     /// turn, each once, within the deadline. Two replicas can fail at once
     /// and one client learns of each failure only by meeting it, so one
-    /// retry is not enough for no call to be lost.
+    /// retry is not enough for no call to be lost. The message is copied
+    /// only while another replica may still get it.
     async fn unary<M, R, F, Fut>(&self, message: M, call: F) -> Result<R>
     where
         M: Clone,
@@ -364,50 +365,23 @@ impl PlannerClient {
         Fut: Future<Output = Result<tonic::Response<R>, tonic::Status>>,
     {
         let turns = &self.pool.turns;
-        let mut replica = turns.pick();
-        if turns.len() == 1 {
-            let answer = self
-                .within(
-                    self.timeout,
-                    replica,
-                    call(
-                        self.pool.stubs[replica].clone(),
-                        self.request(message, self.timeout),
-                    ),
-                )
-                .await;
-            return match answer {
-                Ok(response) => Ok(response.into_inner()),
-                Err(status) => Err(status.into()),
-            };
-        }
         let started = Instant::now();
         let mut tried = vec![false; turns.len()];
         let mut timeout = self.timeout;
+        let mut replica = turns.pick();
         loop {
             tried[replica] = true;
-            let answer = self
-                .within(
-                    timeout,
-                    replica,
-                    call(
-                        self.pool.stubs[replica].clone(),
-                        self.request(message.clone(), timeout),
-                    ),
-                )
-                .await;
-            let status = match answer {
-                Ok(response) => {
-                    turns.mark_answered(replica);
-                    return Ok(response.into_inner());
-                }
+            if tried.iter().all(|&t| t) {
+                // No replica left to send it on to: its answer is the call's.
+                return Ok(self.attempt(replica, message, timeout, &call).await?);
+            }
+            let status = match self.attempt(replica, message.clone(), timeout, &call).await {
+                Ok(answer) => return Ok(answer),
                 Err(status) => status,
             };
             if !retryable(&status) {
-                turns.mark_answered(replica);
                 return Err(status.into());
             }
-            turns.mark_unavailable(replica);
             if let Some(t) = self.timeout {
                 match t.checked_sub(started.elapsed()) {
                     Some(left) if !left.is_zero() => timeout = Some(left),
@@ -421,6 +395,30 @@ impl PlannerClient {
             tracing::debug!(from = %self.pool.endpoints[replica], to = %self.pool.endpoints[next], %status, "retrying on another replica");
             replica = next;
         }
+    }
+
+    /// One try of `call` on `replica` within `timeout`, counted in its stats.
+    async fn attempt<M, R, F, Fut>(
+        &self,
+        replica: usize,
+        message: M,
+        timeout: Option<Duration>,
+        call: &F,
+    ) -> Result<R, tonic::Status>
+    where
+        F: Fn(Stubs, tonic::Request<M>) -> Fut,
+        Fut: Future<Output = Result<tonic::Response<R>, tonic::Status>>,
+    {
+        let request = self.request(message, timeout);
+        let answer = self
+            .within(timeout, replica, call(self.pool.stubs[replica].clone(), request))
+            .await;
+        let turns = &self.pool.turns;
+        match &answer {
+            Err(status) if retryable(status) => turns.mark_unavailable(replica),
+            _ => turns.mark_answered(replica),
+        }
+        answer.map(tonic::Response::into_inner)
     }
 
     /// `call` within `timeout`, its failure [`normalized`]. tonic gives up at
