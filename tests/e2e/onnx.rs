@@ -131,8 +131,9 @@ fn padded_batches_give_the_same_maps() {
 }
 
 /// The shipped models give, through `ort`, what PyTorch gave when they were
-/// exported (models/golden*, written by `mvgrasp_train.export --golden`):
-/// any drift between training and serving fails here.
+/// exported (models/golden*, written by `mvgrasp_train.export --golden`;
+/// for the int8 file, what onnxruntime gave when `mvgrasp_train.quantize
+/// --golden` wrote it): any drift between training and serving fails here.
 #[test]
 fn golden_vectors_match_through_ort() {
     check_golden("models/mvgrasp.onnx", "models/golden");
@@ -142,6 +143,10 @@ fn golden_vectors_match_through_ort() {
     check_golden(
         "models/mvgrasp-physics-labels.onnx",
         "models/golden-physics-labels",
+    );
+    check_golden(
+        "models/mvgrasp-physics-labels-int8.onnx",
+        "models/golden-physics-labels-int8",
     );
 }
 

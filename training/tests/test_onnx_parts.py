@@ -211,3 +211,52 @@ class ComposeTest(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+@unittest.skipIf(MISSING, REASON)
+class QuantizeTest(unittest.TestCase):
+    """`quantize`: the shipped default to int8, calibrated on its golden views."""
+
+    @classmethod
+    def setUpClass(cls):
+        import tempfile
+
+        from mvgrasp_train import quantize
+
+        cls.q = quantize
+        golden = np.load(os.path.join(os.path.dirname(LEVEL), "golden-physics-labels", "input.npy"))
+        cls.views = np.concatenate([golden, golden[:, :, ::-1], golden[:, :, :, ::-1]]).astype(np.float32)
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.out = os.path.join(cls.tmp.name, "int8.onnx")
+        quantize.quantize(LEVEL, cls.out, np.ascontiguousarray(cls.views))
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def test_contract_kept_and_version_marked(self):
+        before = {e.key: e.value for e in onnx.load(LEVEL).metadata_props}
+        after = {e.key: e.value for e in onnx.load(self.out).metadata_props}
+        self.assertEqual(set(before), set(after))
+        for key, value in before.items():
+            want = value + "-int8" if key == "mvgrasp.model_version" else value
+            self.assertEqual(after[key], want, key)
+
+    def test_weights_are_int8(self):
+        model = onnx.load(self.out)
+        ops = {n.op_type for n in model.graph.node}
+        self.assertIn("QuantizeLinear", ops)
+        self.assertIn("DequantizeLinear", ops)
+        int8 = [t for t in model.graph.initializer if t.data_type == onnx.TensorProto.INT8]
+        self.assertGreaterEqual(len(int8), 8)  # a weight tensor per convolution at least
+        # The heads (quality logits, angles and widths in one tensor) stay float.
+        head = [n for n in model.graph.node if n.op_type == "Conv"][-1]
+        floats = {t.name for t in model.graph.initializer if t.data_type == onnx.TensorProto.FLOAT}
+        self.assertIn(head.input[1], floats)
+        self.assertEqual(self.q.head_and_after(model)[0], head.name)
+
+    def test_maps_near_the_float_model(self):
+        gaps = self.q.differences(LEVEL, self.out, np.ascontiguousarray(self.views))
+        self.assertEqual(set(gaps), {"quality", "cos2phi", "sin2phi", "width"})
+        for name, gap in gaps.items():
+            self.assertLess(gap["mean"], 0.03, name)
