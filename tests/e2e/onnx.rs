@@ -148,6 +148,7 @@ fn golden_vectors_match_through_ort() {
         "models/mvgrasp-physics-labels-int8.onnx",
         "models/golden-physics-labels-int8",
     );
+    check_golden("models/mvgrasp-8.onnx", "models/golden-mvgrasp-8");
 }
 
 fn check_golden(file: &str, golden: &str) {
