@@ -14,7 +14,9 @@ pub struct RankConfig {
 }
 
 /// Sorts best first (quality, then object id, view, pixel row and column:
-/// a total order, so equal inputs always rank the same) and applies the limits.
+/// a total order, so equal inputs always rank the same) and applies the
+/// limits. A full list still makes room for every object's best grasp: it
+/// replaces the lowest-ranked grasp of an object that has two or more.
 pub fn rank_grasps(grasps: Vec<Grasp>, config: &RankConfig) -> Vec<Grasp> {
     rank_grasps_vetted::<()>(grasps, config, Verdict::Accept).grasps
 }
@@ -73,27 +75,49 @@ pub fn rank_grasps_scored<T: Ord>(
     });
     let grasps = scored.into_iter().map(|(_, g)| g);
     let mut per_object: rustc_hash::FxHashMap<u32, usize> = rustc_hash::FxHashMap::default();
-    let mut kept = Vec::with_capacity(config.max_grasps.min(grasps.len()));
+    // Accepted grasps with their rank, and (once the list is full) the best
+    // accepted grasp of each object that has none in it yet.
+    let mut kept: Vec<(usize, Grasp)> = Vec::with_capacity(config.max_grasps.min(grasps.len()));
+    let mut missing: Vec<(usize, Grasp)> = Vec::new();
     let (mut refused, mut deferred) = (0, Vec::new());
-    for g in grasps {
-        if kept.len() == config.max_grasps {
-            break;
+    for (rank, g) in grasps.enumerate() {
+        let count = per_object.get(&g.object_id).copied().unwrap_or(0);
+        if count >= config.max_per_object {
+            continue;
         }
-        if per_object
-            .get(&g.object_id)
-            .is_some_and(|&n| n >= config.max_per_object)
-        {
+        let full = kept.len() == config.max_grasps;
+        if full && (count > 0 || missing.iter().any(|(_, m)| m.object_id == g.object_id)) {
             continue;
         }
         match vet(g) {
+            Verdict::Accept(g) if full => missing.push((rank, g)),
             Verdict::Accept(g) => {
                 *per_object.entry(g.object_id).or_insert(0) += 1;
-                kept.push(g);
+                kept.push((rank, g));
             }
             Verdict::Defer(g, why) => deferred.push((why, g)),
             Verdict::Refuse => refused += 1,
         }
     }
+    // Every object with an accepted grasp gets one in the list: each missing
+    // one takes the place of the lowest-ranked grasp of an object that has
+    // two or more, while there is one.
+    for (rank, g) in missing {
+        let spare = kept
+            .iter()
+            .rposition(|(_, k)| per_object.get(&k.object_id).is_some_and(|&n| n > 1));
+        let Some(spare) = spare else {
+            break;
+        };
+        let (_, out) = kept.remove(spare);
+        if let Some(n) = per_object.get_mut(&out.object_id) {
+            *n -= 1;
+        }
+        *per_object.entry(g.object_id).or_insert(0) += 1;
+        kept.push((rank, g));
+    }
+    kept.sort_by_key(|(rank, _)| *rank);
+    let mut kept: Vec<Grasp> = kept.into_iter().map(|(_, g)| g).collect();
     // Stable: each kind keeps its rank order.
     deferred.sort_by(|a, b| a.0.cmp(&b.0));
     let mut kept_deferred = Vec::new();
@@ -160,6 +184,52 @@ mod tests {
             ..config
         };
         assert_eq!(rank_grasps(ranked.clone(), &one).len(), 1);
+    }
+
+    #[test]
+    fn a_full_list_makes_room_for_every_object_s_best_grasp() {
+        // Objects 1 and 2 fill a list of 4 with two grasps each; object 3's
+        // best (quality 0.5) takes the place of the lowest of them, object
+        // 4's only grasp is refused and takes nothing.
+        let grasps = vec![
+            grasp(1, 0.9, 1),
+            grasp(1, 0.85, 2),
+            grasp(2, 0.8, 3),
+            grasp(2, 0.75, 4),
+            grasp(3, 0.5, 5),
+            grasp(3, 0.4, 6),
+            grasp(4, 0.3, 7),
+        ];
+        let config = RankConfig {
+            min_quality: 0.0,
+            max_per_object: 2,
+            max_grasps: 4,
+        };
+        let mut asked = Vec::new();
+        let ranked = rank_grasps_vetted::<()>(grasps.clone(), &config, |g| {
+            asked.push(g.pixel[0]);
+            if g.object_id == 4 {
+                Verdict::Refuse
+            } else {
+                Verdict::Accept(g)
+            }
+        });
+        let keys: Vec<u32> = ranked.grasps.iter().map(|g| g.pixel[0]).collect();
+        assert_eq!(keys, [1, 2, 3, 5]);
+        assert_eq!(ranked.refused, 1);
+        // Once full, only objects without a grasp in the list are checked.
+        assert_eq!(asked, [1, 2, 3, 4, 5, 7]);
+        // With no object holding two, nothing is replaced.
+        let one_each = RankConfig {
+            max_per_object: 1,
+            max_grasps: 2,
+            ..config
+        };
+        let keys: Vec<u32> = rank_grasps(grasps, &one_each)
+            .iter()
+            .map(|g| g.pixel[0])
+            .collect();
+        assert_eq!(keys, [1, 3]);
     }
 
     #[test]
