@@ -27,11 +27,11 @@ use std::io::{BufRead, Write};
 
 use mvgrasp_core::Workspace;
 use nalgebra::{Isometry3, Vector3};
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
 
 use crate::collision::BoxObstacle;
 use crate::error::{Error, Result};
-use crate::pick::{GraspTarget, PickConfig, Step, plan_pick};
+use crate::pick::{GraspTarget, PickConfig, plan_pick};
 use crate::planner::{ObjectBox, obstacles};
 use crate::ur5e::{Joints, Ur5e};
 
@@ -98,25 +98,6 @@ struct GraspJson {
     #[serde(default)]
     quality: f32,
     object: Option<usize>,
-}
-
-#[derive(Debug, Serialize)]
-#[serde(tag = "kind", rename_all = "lowercase")]
-enum StepJson {
-    Movej {
-        name: &'static str,
-        joints: Joints,
-    },
-    Movel {
-        name: &'static str,
-        joints: Joints,
-        path: Vec<Joints>,
-    },
-    Gripper {
-        name: &'static str,
-        close: bool,
-        width_m: f64,
-    },
 }
 
 fn pose(field: &'static str, position: [f64; 3], orientation: [f64; 4]) -> Result<Isometry3<f64>> {
@@ -197,11 +178,10 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
             for (index, grasp) in grasps.iter().enumerate() {
                 match plan_pick(arm, &config, std::slice::from_ref(grasp), &scene, &plan.current) {
                     Ok(pick) => {
-                        let steps = steps_json(&pick.steps);
                         return Ok(serde_json::json!({
                             "ok": true,
                             "grasp_index": index,
-                            "steps": steps,
+                            "steps": pick.steps,
                             "refused": refused,
                         }));
                     }
@@ -219,30 +199,6 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
             }))
         }
     }
-}
-
-fn steps_json(steps: &[Step]) -> Vec<StepJson> {
-    steps
-        .iter()
-        .map(|step| match step {
-            Step::MoveJ { name, joints } => StepJson::Movej {
-                name,
-                joints: *joints,
-            },
-            Step::MoveL {
-                name, joints, path, ..
-            } => StepJson::Movel {
-                name,
-                joints: *joints,
-                path: path.clone(),
-            },
-            Step::Gripper { name, close, width_m } => StepJson::Gripper {
-                name,
-                close: *close,
-                width_m: *width_m,
-            },
-        })
-        .collect()
 }
 
 /// Answers request lines from `input` on `output` until `input` ends.

@@ -112,8 +112,10 @@ impl Default for PickConfig {
     }
 }
 
-/// One step of a pick.
-#[derive(Debug, Clone, PartialEq)]
+/// One step of a pick. Serialised (`robot-bridge plan-jsonl`) with its
+/// kind as a lowercase `kind` tag, without the MoveL target pose.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
 pub enum Step {
     /// Joint-space move to `joints`.
     MoveJ {
@@ -127,6 +129,7 @@ pub enum Step {
         /// What the step is for.
         name: &'static str,
         /// Target TCP pose in the robot base frame.
+        #[serde(skip)]
         base_from_tcp: Isometry3<f64>,
         /// The joints at the target.
         joints: Joints,
