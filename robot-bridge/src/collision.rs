@@ -3,7 +3,10 @@
 //!
 //! The arm is a chain of capsules (parry) between consecutive DH frame
 //! origins, and the gripper a few boxes for its opening ([`HandModel`]);
-//! obstacles are boxes (the table, the basket, detected objects). DH origins
+//! obstacles are boxes (the table, the basket, detected objects). Near the
+//! grasp the fingers may be left out of the checks against detected objects
+//! ([`CollisionWorld::with_fingers_against_detected`]): the planner has
+//! checked them against the points it saw. DH origins
 //! of a UR arm sit on the joint axes, not on the link centrelines, so the
 //! capsules are generous (`ArmModel::margin_m` on top) rather than exact.
 
@@ -95,10 +98,14 @@ impl Default for HandModel {
 }
 
 impl HandModel {
+    /// How many of [`HandModel::boxes`]' boxes, at its end, are the fingers.
+    pub const FINGERS: usize = 2;
+
     /// The boxes (centre, half sizes; TCP frame) for an opening `opening_m`
     /// with the flange `flange_m` behind the fingertips, each grown by
     /// `margin_m`, except past the fingertips: the planner keeps those its
-    /// own clearance above the table.
+    /// own clearance above the table. The housing and the linkage come
+    /// first, the two fingers last ([`HandModel::FINGERS`]).
     pub fn boxes(&self, opening_m: f64, flange_m: f64, margin_m: f64) -> Vec<(Vector3<f64>, Vector3<f64>)> {
         let half_open = opening_m.max(0.0) / 2.0;
         // A box `half_x` by `half_y` from `a` to `b` measured from the flange along the approach.
@@ -145,11 +152,34 @@ impl HandModel {
 #[derive(Debug, Clone)]
 pub struct CollisionWorld {
     world_from_base: Isometry3<f64>,
-    obstacles: Vec<(Pose, Cuboid, String)>,
+    obstacles: Vec<Obstacle>,
     model: ArmModel,
     /// The hand's boxes in the flange frame, for the gripper set by
-    /// `with_gripper` (they do not change during a pick).
+    /// `with_gripper` (they do not change during a pick); the fingers last.
     hand: Vec<(Isometry3<f64>, Cuboid)>,
+    /// Whether the fingers are checked against detected objects.
+    fingers_against_detected: bool,
+}
+
+/// An obstacle as parry tests it.
+#[derive(Debug, Clone)]
+struct Obstacle {
+    pose: Pose,
+    cuboid: Cuboid,
+    name: String,
+    /// A detected object (the planner's visible extent), not part of the cell.
+    detected: bool,
+}
+
+impl Obstacle {
+    fn new(o: &BoxObstacle, detected: bool) -> Self {
+        Self {
+            pose: pose(&o.world_from_box),
+            cuboid: Cuboid::new(vector(&o.half_extents_m)),
+            name: o.name.clone(),
+            detected,
+        }
+    }
 }
 
 fn vector(v: &Vector3<f64>) -> Vector {
@@ -165,25 +195,36 @@ fn pose(iso: &Isometry3<f64>) -> Pose {
 }
 
 impl CollisionWorld {
-    /// A world of `obstacles` with the robot base at `world_from_base`.
+    /// A world of the cell's `obstacles` with the robot base at `world_from_base`.
     pub fn new(world_from_base: Isometry3<f64>, obstacles: &[BoxObstacle], model: ArmModel) -> Self {
-        let obstacles = obstacles
-            .iter()
-            .map(|o| {
-                (
-                    pose(&o.world_from_box),
-                    Cuboid::new(vector(&o.half_extents_m)),
-                    o.name.clone(),
-                )
-            })
-            .collect();
         Self {
             world_from_base,
-            obstacles,
+            obstacles: obstacles.iter().map(|o| Obstacle::new(o, false)).collect(),
             model,
             hand: Vec::new(),
+            fingers_against_detected: true,
         }
         .with_gripper(Isometry3::translation(0.0, 0.0, 0.233), 0.14)
+    }
+
+    /// The same world with the planner's detected `objects` added (boxes of
+    /// their visible extent).
+    pub fn with_detected(mut self, objects: &[BoxObstacle]) -> Self {
+        self.obstacles
+            .extend(objects.iter().map(|o| Obstacle::new(o, true)));
+        self
+    }
+
+    /// The same world with the fingers checked against detected objects or
+    /// not (they are by default; the housing, the linkage and the arm always
+    /// are, and the fingers always against the cell). For the moves along
+    /// the grasp's approach line, where the planner has already checked the
+    /// fingers against the points it saw: a detected object's box is its
+    /// visible extent, which beside a grasped object in a pile covers free
+    /// space the fingers go down into.
+    pub fn with_fingers_against_detected(mut self, checked: bool) -> Self {
+        self.fingers_against_detected = checked;
+        self
     }
 
     /// The same world with the gripper's TCP at `flange_from_tcp` and its
@@ -229,17 +270,20 @@ impl CollisionWorld {
     /// The first obstacle the arm at `q` touches, if any.
     pub fn collision(&self, arm: &Ur5e, q: &Joints) -> Option<&str> {
         let (capsules, boxes) = self.shapes(arm, q);
-        // A shape parry cannot test counts as touching.
-        let hits = |obstacle_pose: &Pose, cuboid: &Cuboid| {
+        let fingers_from = boxes.len().saturating_sub(HandModel::FINGERS);
+        let hits = |o: &Obstacle| {
+            // A shape parry cannot test counts as touching.
             let touch = |pose: &Pose, shape: &dyn parry3d::shape::Shape| {
-                intersection_test(pose, shape, obstacle_pose, cuboid).map_or(true, |hit| hit.intersecting)
+                intersection_test(pose, shape, &o.pose, &o.cuboid).map_or(true, |hit| hit.intersecting)
             };
-            capsules.iter().any(|c| touch(&Pose::IDENTITY, c)) || boxes.iter().any(|(p, b)| touch(p, b))
+            let hand = if o.detected && !self.fingers_against_detected {
+                &boxes[..fingers_from]
+            } else {
+                &boxes[..]
+            };
+            capsules.iter().any(|c| touch(&Pose::IDENTITY, c)) || hand.iter().any(|(p, b)| touch(p, b))
         };
-        self.obstacles
-            .iter()
-            .find(|(obstacle_pose, cuboid, _)| hits(obstacle_pose, cuboid))
-            .map(|(_, _, name)| name.as_str())
+        self.obstacles.iter().find(|o| hits(o)).map(|o| o.name.as_str())
     }
 
     /// True when the straight joint-space segment is free, checked every `step_rad`.

@@ -83,6 +83,9 @@ pub struct PickSection {
     pub basket: BoxConfig,
     /// Grasps asked of the planner (the best feasible one is picked).
     pub max_grasps: usize,
+    /// Check the fingers against the other detected objects on the approach
+    /// and the lift too (`PickConfig::check_fingers_near_grasp`).
+    pub check_fingers_near_grasp: bool,
 }
 
 /// Where grasps come from.
@@ -178,6 +181,7 @@ impl Default for BridgeConfig {
                     half_extents_m: [0.15, 0.15, 0.05],
                 },
                 max_grasps: 10,
+                check_fingers_near_grasp: pick.check_fingers_near_grasp,
             },
             planner: PlannerSection {
                 endpoint: None,
@@ -302,6 +306,7 @@ impl BridgeConfig {
             tool_speed: self.robot.tool_speed,
             tool_accel: self.robot.tool_accel,
             obstacles: vec![self.basket()],
+            check_fingers_near_grasp: self.pick.check_fingers_near_grasp,
             ..PickConfig::default()
         })
     }

@@ -11,8 +11,11 @@
 //! Every waypoint and every sample of the linear moves is checked for
 //! collisions of the arm (capsules) with the cell's obstacles and the other
 //! detected objects; joint moves whose straight line collides are planned
-//! around with RRT-Connect (`collision`). Not modelled: the object held
-//! between the fingers while it is carried.
+//! around with RRT-Connect (`collision`). On the approach and the lift the
+//! fingers are checked against the cell only, unless
+//! [`PickConfig::check_fingers_near_grasp`] asks: the planner has checked
+//! them against the points it saw, swept back along the approach. Not
+//! modelled: the object held between the fingers while it is carried.
 
 use std::f64::consts::PI;
 
@@ -79,6 +82,13 @@ pub struct PickConfig {
     pub obstacles: Vec<BoxObstacle>,
     /// The arm's collision geometry.
     pub arm_model: ArmModel,
+    /// Check the fingers against the other detected objects' boxes on the
+    /// approach and the lift too (off by default: the planner's hand check
+    /// vets them against the points it saw, swept 10 cm back along the
+    /// approach, while a box is an object's visible extent, which in a
+    /// pile covers the free space beside the grasped object; on the
+    /// referee's train pool, piles: docs/experiments/2026-11-28-bridge-fingers.md).
+    pub check_fingers_near_grasp: bool,
     /// RRT-Connect seed (paths are deterministic per seed).
     pub rrt_seed: u64,
     /// RRT-Connect iterations before giving up.
@@ -106,6 +116,7 @@ impl Default for PickConfig {
             max_joint_step: 0.35,
             obstacles: Vec::new(),
             arm_model: ArmModel::default(),
+            check_fingers_near_grasp: false,
             rrt_seed: 1,
             rrt_iterations: 3000,
         }
@@ -171,21 +182,27 @@ pub fn plan_pick(
     check_joints("current_joints", current)?;
     let mut last_error = Error::Unreachable("no grasp given".to_owned());
     for (index, grasp) in grasps.iter().enumerate() {
-        let mut obstacles = config.obstacles.clone();
-        obstacles.extend(
-            scene
-                .iter()
-                .enumerate()
-                .filter(|(i, _)| Some(*i) != grasp.object)
-                .map(|(_, o)| o.clone()),
-        );
+        let neighbours: Vec<BoxObstacle> = scene
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| Some(*i) != grasp.object)
+            .map(|(_, o)| o.clone())
+            .collect();
         let opening = approach_opening(grasp.width_m);
-        let world = CollisionWorld::new(config.world_from_base, &obstacles, config.arm_model.clone())
-            .with_gripper(
-                config.flange_from_tcp * Translation3::new(0.0, 0.0, config.fingertip_along(opening)),
-                opening,
-            );
-        match plan_one(arm, config, &world, grasp, current) {
+        let world = CollisionWorld::new(
+            config.world_from_base,
+            &config.obstacles,
+            config.arm_model.clone(),
+        )
+        .with_detected(&neighbours)
+        .with_gripper(
+            config.flange_from_tcp * Translation3::new(0.0, 0.0, config.fingertip_along(opening)),
+            opening,
+        );
+        let near = world
+            .clone()
+            .with_fingers_against_detected(config.check_fingers_near_grasp);
+        match plan_one(arm, config, [&world, &near], grasp, current) {
             Ok(steps) => {
                 return Ok(PickPlan {
                     grasp_index: index,
@@ -222,10 +239,12 @@ impl PickConfig {
     }
 }
 
+/// The pick of one grasp; `near` is `world` as the approach and the lift
+/// check it.
 fn plan_one(
     arm: &Ur5e,
     config: &PickConfig,
-    world: &CollisionWorld,
+    [world, near]: [&CollisionWorld; 2],
     grasp: &GraspTarget,
     current: &Joints,
 ) -> Result<Vec<Step>> {
@@ -272,7 +291,7 @@ fn plan_one(
         let (q_grasp, approach_path) = match linear(
             arm,
             config,
-            world,
+            near,
             &flange_for(&pre),
             &flange_for(&world_from_tcp),
             &q_pre,
@@ -286,7 +305,7 @@ fn plan_one(
         let (q_lift, lift_path) = match linear(
             arm,
             config,
-            world,
+            near,
             &flange_for(&world_from_tcp),
             &flange_for(&lift),
             &q_grasp,
@@ -604,8 +623,8 @@ pub(crate) mod tests {
             ..PickConfig::default()
         };
         let mut grasp = top_grasp(0.1, -0.45, 0.05);
-        // The grasped object itself: 12 cm tall, so the gripper body reaches
-        // down over it (the fingers are not modelled; they straddle it).
+        // The grasped object itself, 12 cm tall: the fingers straddle it,
+        // their boxes (1 cm margin) overlap its sides.
         let target = BoxObstacle {
             name: "target".to_owned(),
             world_from_box: Isometry3::translation(0.1, -0.45, 0.06),
@@ -613,9 +632,14 @@ pub(crate) mod tests {
         };
         grasp.object = Some(0);
         assert!(plan_pick(&arm, &config, &[grasp], std::slice::from_ref(&target), &HOME).is_ok());
-        // Not told which object it grasps: it collides with it.
+        // Not told which object it grasps, and checking the fingers near the
+        // grasp too: they collide with it.
         grasp.object = None;
-        let err = plan_pick(&arm, &config, &[grasp], std::slice::from_ref(&target), &HOME).unwrap_err();
+        let checking = PickConfig {
+            check_fingers_near_grasp: true,
+            ..config.clone()
+        };
+        let err = plan_pick(&arm, &checking, &[grasp], std::slice::from_ref(&target), &HOME).unwrap_err();
         assert!(err.to_string().contains("target"), "{err}");
         // A tall neighbour right beside the approach blocks it: 6 cm from
         // the grasp across the closing direction it clears the 2F-140
@@ -629,6 +653,49 @@ pub(crate) mod tests {
         let beside = [target.clone(), neighbour(-0.36)];
         assert!(plan_pick(&arm, &config, &[grasp], &beside, &HOME).is_ok());
         let err = plan_pick(&arm, &config, &[grasp], &[target, neighbour(-0.39)], &HOME).unwrap_err();
+        assert!(err.to_string().contains("neighbour"), "{err}");
+    }
+
+    #[test]
+    fn near_the_grasp_the_fingers_are_checked_against_the_cell_only_unless_asked() {
+        let arm = Ur5e::default();
+        let mut grasp = top_grasp(0.1, -0.45, 0.05);
+        grasp.object = Some(0);
+        let target = BoxObstacle {
+            name: "target".to_owned(),
+            world_from_box: Isometry3::translation(0.1, -0.45, 0.03),
+            half_extents_m: Vector3::new(0.02, 0.03, 0.03),
+        };
+        // A 6 cm tall box beside the grasp along the closing direction, 5 cm
+        // from its centre: inside a finger (3.5 to 8.3 cm out, margin
+        // included), below the linkage (8.7 cm above the fingertips).
+        let beside = BoxObstacle {
+            name: "neighbour".to_owned(),
+            world_from_box: Isometry3::translation(0.17, -0.45, 0.03),
+            half_extents_m: Vector3::new(0.02, 0.03, 0.03),
+        };
+        let scene = [target, beside.clone()];
+        let trusting = PickConfig {
+            obstacles: vec![table()],
+            ..PickConfig::default()
+        };
+        assert!(!trusting.check_fingers_near_grasp, "the default");
+        assert!(plan_pick(&arm, &trusting, &[grasp], &scene, &HOME).is_ok());
+        let checking = PickConfig {
+            check_fingers_near_grasp: true,
+            ..trusting.clone()
+        };
+        let err = plan_pick(&arm, &checking, &[grasp], &scene, &HOME).unwrap_err();
+        assert!(
+            err.to_string().contains("approach") && err.to_string().contains("neighbour"),
+            "{err}"
+        );
+        // The same box as a part of the cell blocks the fingers either way.
+        let cell = PickConfig {
+            obstacles: vec![table(), beside],
+            ..trusting
+        };
+        let err = plan_pick(&arm, &cell, &[grasp], &scene[..1], &HOME).unwrap_err();
         assert!(err.to_string().contains("neighbour"), "{err}");
     }
 
