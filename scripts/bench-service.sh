@@ -4,8 +4,7 @@
 #   1. one client, calls back to back: end-to-end latency;
 #   2. 16 concurrent clients with batching, then the same without batching
 #      (max_batch_views = 1: every call's views run alone), in this one run.
-# The model is models/mvgrasp.onnx when shipped, else the paper's
-# architecture with random weights (the network's cost, not its grasps).
+# The model is the default (deploy/server.toml's [model] path) or $MODEL.
 # Results: target/bench/service.jsonl and a Markdown table on stdout.
 # The two 16-client settings alternate REPEATS times (the machine is noisy).
 # Usage: scripts/bench-service.sh [SECONDS per setting, default 20] [REPEATS, default 3]
@@ -15,16 +14,9 @@ seconds=${1:-20}
 repeats=${2:-3}
 ort="$(scripts/fetch-onnxruntime.sh)"
 mkdir -p target/bench
-model=models/mvgrasp.onnx
-if [[ ! -f "$model" ]]; then
-    model=target/bench/paper-random-96.onnx
-    if [[ ! -f "$model" ]]; then
-        if ! python3 -c "import onnx, numpy" >/dev/null 2>&1; then
-            python3 -m pip install --quiet --target target/pydeps-bench onnx numpy
-        fi
-        PYTHONPATH=target/pydeps-bench python3 models/fixtures/make_fixtures.py paper "$model"
-    fi
-fi
+# The default model, as deploy/server.toml names it (models/manifest.toml), or $MODEL.
+model=${MODEL:-$(sed -n 's/^path = "\([^"]*\)".*/\1/p' deploy/server.toml | head -1)}
+[[ -f "$model" ]] || { echo "error: $model: no such model file" >&2; exit 1; }
 cargo build --release --quiet -p mvgrasp-server -p mvgrasp-client
 out=target/bench/service.jsonl
 echo "$model" > target/bench/model.txt  # the plot's title

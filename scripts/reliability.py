@@ -48,7 +48,6 @@ class Server:
         env = dict(os.environ, MVGRASP_LOG="warn")
         self.proc = subprocess.Popen(
             [args.server, "--config", config, "--onnxruntime", args.onnxruntime,
-             "--model", os.path.join(ROOT, "models/mvgrasp-physics-labels.onnx"),
              "--listen", f"127.0.0.1:{self.port}", "--metrics-listen", f"127.0.0.1:{self.metrics}"],
             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT)
         deadline = time.monotonic() + 60

@@ -7,13 +7,9 @@ cd "$(dirname "$0")/.."
 ORT_DYLIB_PATH="$(scripts/fetch-onnxruntime.sh)"
 export ORT_DYLIB_PATH
 cargo build --release --quiet -p mvgrasp-server -p mvgrasp-client
-model=${MVGRASP_MODEL:-models/mvgrasp-physics-labels.onnx}
-if [[ -n "${MVGRASP_MODEL:-}" && ! -f "$model" ]]; then
-    echo "error: MVGRASP_MODEL=$model: no such file" >&2
-    exit 1
+args=(--config deploy/server.toml --device cpu)   # the config names the default model (models/manifest.toml)
+if [[ -n "${MVGRASP_MODEL:-}" ]]; then
+    [[ -f "$MVGRASP_MODEL" ]] || { echo "error: MVGRASP_MODEL=$MVGRASP_MODEL: no such file" >&2; exit 1; }
+    args+=(--model "$MVGRASP_MODEL")
 fi
-if [[ -f "$model" ]]; then
-    exec target/release/mvgrasp-server --config deploy/server.toml --model "$model" --device cpu "$@"
-fi
-echo "warning: $model is not shipped yet (issue 4); serving the analytic baseline instead" >&2
-exec target/release/mvgrasp-server --config deploy/server.toml --backend baseline "$@"
+exec target/release/mvgrasp-server "${args[@]}" "$@"

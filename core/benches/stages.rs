@@ -33,8 +33,8 @@ fn stages(c: &mut Criterion) {
         &bytes,
         Workspace::new([-0.6, -0.4, -0.05], [0.6, 0.4, 0.4]).expect("workspace"),
     );
-    // The view size and pixel size of the shipped model (`models/mvgrasp.onnx`,
-    // `mvgrasp-1-72px`: 72 px of 3.33 mm); the analytic baseline speaks it.
+    // The view size and pixel size of the default model (models/manifest.toml:
+    // 72 px of 3.33 mm); the analytic baseline speaks it.
     let shipped = ModelContract {
         input_size_px: 72,
         pixel_size_m: 0.003_333_333,

@@ -130,28 +130,72 @@ fn padded_batches_give_the_same_maps() {
     assert!(worst < 1e-5, "padding changed the maps by {worst}");
 }
 
-/// The shipped models give, through `ort`, what PyTorch gave when they were
-/// exported (models/golden*, written by `mvgrasp_train.export --golden`;
-/// for the int8 file, what onnxruntime gave when `mvgrasp_train.quantize
-/// --golden` wrote it): any drift between training and serving fails here.
-#[test]
-fn golden_vectors_match_through_ort() {
-    check_golden("models/mvgrasp.onnx", "models/golden");
-    check_golden("models/mvgrasp-paper.onnx", "models/golden-paper");
-    check_golden("models/mvgrasp-sim3.onnx", "models/golden-sim3");
-    check_golden("models/mvgrasp-physics.onnx", "models/golden-physics");
-    check_golden(
-        "models/mvgrasp-physics-labels.onnx",
-        "models/golden-physics-labels",
-    );
-    check_golden(
-        "models/mvgrasp-physics-labels-int8.onnx",
-        "models/golden-physics-labels-int8",
-    );
-    check_golden("models/mvgrasp-8.onnx", "models/golden-mvgrasp-8");
+/// `models/manifest.toml`: what each shipped network is.
+#[derive(serde::Deserialize)]
+struct Manifest {
+    default: String,
+    models: std::collections::BTreeMap<String, ManifestEntry>,
 }
 
-fn check_golden(file: &str, golden: &str) {
+#[derive(serde::Deserialize)]
+struct ManifestEntry {
+    version: String,
+    file: String,
+    sha256: String,
+    golden: String,
+    data_version: String,
+}
+
+fn manifest() -> Manifest {
+    let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let text = std::fs::read_to_string(repo.join("models/manifest.toml")).expect("models/manifest.toml");
+    toml::from_str(&text).expect("models/manifest.toml parses")
+}
+
+/// Every network in `models/manifest.toml` is the file it names (sha256),
+/// says in its metadata the version and data version listed, and gives,
+/// through `ort`, what PyTorch gave when it was exported (its golden folder,
+/// written by `mvgrasp_train.export --golden`; for an int8 file, what
+/// onnxruntime gave when `mvgrasp_train.quantize --golden` wrote it): any
+/// drift between training and serving fails here. Every ONNX file in
+/// `models/` is listed, and the default is what the server loads when its
+/// settings name no model.
+#[test]
+fn every_shipped_model_matches_the_manifest_and_its_golden_vectors() {
+    let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let manifest = manifest();
+    let default = &manifest.models[&manifest.default];
+    assert_eq!(
+        mvgrasp_server::Settings::default().model.path,
+        std::path::Path::new("models").join(&default.file),
+        "the server's default model is the manifest's"
+    );
+    let mut shipped: Vec<String> = std::fs::read_dir(repo.join("models"))
+        .expect("models/")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .filter(|name| name.ends_with(".onnx"))
+        .collect();
+    shipped.sort();
+    let mut listed: Vec<String> = manifest.models.values().map(|m| m.file.clone()).collect();
+    listed.sort();
+    assert_eq!(shipped, listed, "models/*.onnx and the manifest");
+    for (name, entry) in &manifest.models {
+        let path = repo.join("models").join(&entry.file);
+        let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let digest = ring::digest::digest(&ring::digest::SHA256, &bytes);
+        let hex: String = digest.as_ref().iter().map(|b| format!("{b:02x}")).collect();
+        assert_eq!(hex, entry.sha256, "{name}: {} is not the file listed", entry.file);
+        let contract = check_golden(
+            &format!("models/{}", entry.file),
+            &format!("models/{}", entry.golden),
+        );
+        assert_eq!(contract.model_version, entry.version, "{name}");
+        assert_eq!(contract.data_version, entry.data_version, "{name}");
+    }
+}
+
+/// Checks `file` against its golden vectors and returns its contract.
+fn check_golden(file: &str, golden: &str) -> mvgrasp_core::ModelContract {
     let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let mut model = settings(BackendKind::Onnx).model;
     model.path = repo.join(file);
@@ -195,6 +239,7 @@ fn check_golden(file: &str, golden: &str) {
         .iter()
         .fold((f32::MAX, f32::MIN), |(a, b), &x| (a.min(x), b.max(x)));
     assert!(hi - lo > 0.1, "{file}: quality spans only {lo}..{hi}");
+    contract
 }
 
 /// The shipped default on the committed sample frame (6 objects), default
@@ -204,7 +249,9 @@ fn check_golden(file: &str, golden: &str) {
 async fn the_default_request_gives_every_sample_object_a_grasp() {
     let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let mut settings = settings(BackendKind::Onnx);
-    settings.model.path = repo.join("models/mvgrasp-physics-labels.onnx");
+    settings.model.path = repo
+        .join("models")
+        .join(&manifest().models[&manifest().default].file);
     let (server, mut client) = crate::fixture::start(settings).await;
     let scene = mvgrasp_client::scene::SceneFiles::load_depth(
         &repo.join("samples/table6/depth.png"),
