@@ -2,13 +2,16 @@
 
 mod collision;
 mod grasp;
+mod hand;
 mod peaks;
 mod rank;
+mod repair;
+#[cfg(test)]
+mod test_support;
 
-pub use collision::{
-    Collision, HandConfig, Obstacle, contact_slopes, deepen, fit_opening, hand_collides, hand_collision,
-    hand_out_of_view, squaring_turn, turn_away,
-};
+pub use collision::{Collision, Obstacle, hand_collides, hand_collision, hand_out_of_view};
 pub use grasp::{DecodeConfig, Grasp, Repairs, ViewPlacement, decode_view, grasp_at, lever_arm_m};
+pub use hand::HandConfig;
 pub use peaks::{NEGLIGIBLE_QUALITY, find_peaks, smooth, smoothed_peaks};
 pub use rank::{RankConfig, Ranked, Verdict, rank_grasps, rank_grasps_scored, rank_grasps_vetted};
+pub use repair::{contact_slopes, deepen, fit_opening, squaring_turn, turn_away};
