@@ -341,6 +341,8 @@ pub struct Prepared {
     /// Earlier rounds of the cascade: their entries and maps.
     earlier: Vec<(usize, usize)>,
     earlier_maps: Vec<f32>,
+    /// Objects with a grasp that clears the hand check in an earlier round.
+    covered: Vec<bool>,
     options: PlanOptions,
     timings: StageTimings,
 }
@@ -583,6 +585,7 @@ impl Planner {
             SensorInput::Cloud(_) => None,
         };
         Ok(Prepared {
+            covered: vec![false; objects.len()],
             objects,
             table,
             view,
@@ -604,12 +607,19 @@ impl Planner {
         maps.check_matches(&prepared.batch)?;
         if prepared.options.view_cascade && prepared.untried.iter().any(|u| !u.is_empty()) {
             let start = Instant::now();
+            // Whether an object has a grasp that passes depends on its own
+            // views alone, and earlier rounds' views are already counted:
+            // only this round's views are decoded to update the cover.
+            let newly = self.objects_with_grasps(&prepared, &prepared.inferred, maps);
+            for (covered, newly) in prepared.covered.iter_mut().zip(newly) {
+                *covered |= newly;
+            }
             let (entries, all) = prepared.rounds_so_far(maps);
-            let covered = self.objects_with_grasps(&prepared, &entries, &all);
             let mut batch = ViewBatch::new(prepared.batch.size_px);
             let mut next = Vec::new();
-            for (index, (o, untried)) in prepared.objects.iter_mut().zip(&mut prepared.untried).enumerate() {
-                if covered[index] || untried.is_empty() {
+            let objects = prepared.objects.iter_mut().zip(&mut prepared.untried);
+            for (index, ((o, untried), &covered)) in objects.zip(&prepared.covered).enumerate() {
+                if covered || untried.is_empty() {
                     continue;
                 }
                 let v = untried.remove(0);
