@@ -209,9 +209,9 @@ impl CollisionWorld {
 
     /// The same world with the planner's detected `objects` added (boxes of
     /// their visible extent).
-    pub fn with_detected(mut self, objects: &[BoxObstacle]) -> Self {
+    pub fn with_detected<'a>(mut self, objects: impl IntoIterator<Item = &'a BoxObstacle>) -> Self {
         self.obstacles
-            .extend(objects.iter().map(|o| Obstacle::new(o, true)));
+            .extend(objects.into_iter().map(|o| Obstacle::new(o, true)));
         self
     }
 

@@ -31,9 +31,7 @@ fn the_shipped_model_clears_isolated_objects_in_physics() {
     // The service's default model, whichever file that is.
     let shipped = mvgrasp_server::settings::ModelSettings::default().path;
     let mut model = settings(BackendKind::Onnx).model;
-    model.path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("..")
-        .join(&shipped);
+    model.path = crate::fixture::repo().join(&shipped);
     let mut net = backend::load(&model, 8)
         .unwrap_or_else(|e| panic!("{} loads: {e}", shipped.display()))
         .net;

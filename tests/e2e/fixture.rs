@@ -9,7 +9,8 @@ use nalgebra::Point3;
 
 use crate::scene::{Camera, Scene, render};
 
-fn repo() -> PathBuf {
+/// The repository root.
+pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 

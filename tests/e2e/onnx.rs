@@ -106,7 +106,7 @@ fn read_npy_f32(path: &std::path::Path) -> (Vec<usize>, Vec<f32>) {
 /// changes none of the real views' maps and returns only theirs.
 #[test]
 fn padded_batches_give_the_same_maps() {
-    let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let repo = crate::fixture::repo();
     let mut model = settings(BackendKind::Onnx).model;
     model.path = repo.join("models/mvgrasp.onnx");
     let mut net = OnnxNet::load(&model, 8).expect("models/mvgrasp.onnx loads");
@@ -147,7 +147,7 @@ struct ManifestEntry {
 }
 
 fn manifest() -> Manifest {
-    let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let repo = crate::fixture::repo();
     let text = std::fs::read_to_string(repo.join("models/manifest.toml")).expect("models/manifest.toml");
     toml::from_str(&text).expect("models/manifest.toml parses")
 }
@@ -162,7 +162,7 @@ fn manifest() -> Manifest {
 /// settings name no model.
 #[test]
 fn every_shipped_model_matches_the_manifest_and_its_golden_vectors() {
-    let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let repo = crate::fixture::repo();
     let manifest = manifest();
     let default = &manifest.models[&manifest.default];
     assert_eq!(
@@ -196,7 +196,7 @@ fn every_shipped_model_matches_the_manifest_and_its_golden_vectors() {
 
 /// Checks `file` against its golden vectors and returns its contract.
 fn check_golden(file: &str, golden: &str) -> mvgrasp_core::ModelContract {
-    let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let repo = crate::fixture::repo();
     let mut model = settings(BackendKind::Onnx).model;
     model.path = repo.join(file);
     let mut net = OnnxNet::load(&model, 8).unwrap_or_else(|e| panic!("{file} loads: {e}"));
@@ -247,11 +247,10 @@ fn check_golden(file: &str, golden: &str) -> mvgrasp_core::ModelContract {
 /// paper's single pass (`view_cascade: false`) three of them get none.
 #[tokio::test]
 async fn the_default_request_gives_every_sample_object_a_grasp() {
-    let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let repo = crate::fixture::repo();
     let mut settings = settings(BackendKind::Onnx);
-    settings.model.path = repo
-        .join("models")
-        .join(&manifest().models[&manifest().default].file);
+    let manifest = manifest();
+    settings.model.path = repo.join("models").join(&manifest.models[&manifest.default].file);
     let (server, mut client) = crate::fixture::start(settings).await;
     let scene = mvgrasp_client::scene::SceneFiles::load_depth(
         &repo.join("samples/table6/depth.png"),

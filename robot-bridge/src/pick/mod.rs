@@ -182,19 +182,18 @@ pub fn plan_pick(
     check_joints("current_joints", current)?;
     let mut last_error = Error::Unreachable("no grasp given".to_owned());
     for (index, grasp) in grasps.iter().enumerate() {
-        let neighbours: Vec<BoxObstacle> = scene
+        let neighbours = scene
             .iter()
             .enumerate()
             .filter(|(i, _)| Some(*i) != grasp.object)
-            .map(|(_, o)| o.clone())
-            .collect();
+            .map(|(_, o)| o);
         let opening = approach_opening(grasp.width_m);
         let world = CollisionWorld::new(
             config.world_from_base,
             &config.obstacles,
             config.arm_model.clone(),
         )
-        .with_detected(&neighbours)
+        .with_detected(neighbours)
         .with_gripper(
             config.flange_from_tcp * Translation3::new(0.0, 0.0, config.fingertip_along(opening)),
             opening,
