@@ -410,6 +410,24 @@ mod tests {
 
     const HOME: Joints = [0.0, -PI / 2.0, PI / 2.0, -PI / 2.0, -PI / 2.0, 0.0];
 
+    /// The planner checks grasps with its own hand (`mvgrasp_core`'s
+    /// `HandConfig`); it must not let through what this model refuses near
+    /// the grasp: at every opening of the 2F-140 as the referee calibrates
+    /// it (TCP 233 mm from the flange at a 6 cm opening, the fingertips 5 mm
+    /// further closed and 25 mm nearer fully open), its fingers end before
+    /// the linkage begins, its palm reaches past the linkage's far end, and
+    /// it spans at least the linkage's narrowest width.
+    #[test]
+    fn the_planners_hand_covers_the_linkage_at_every_opening() {
+        let (planner, bridge) = (mvgrasp_core::decode::HandConfig::default(), HandModel::default());
+        let [linkage_from, linkage_to] = bridge.linkage_from_flange_m;
+        for tips_from_flange in [0.238, 0.233, 0.208] {
+            assert!(planner.finger_length_m <= tips_from_flange - linkage_to + 1e-9);
+            assert!(planner.finger_length_m + planner.palm_depth_m >= tips_from_flange - linkage_from);
+        }
+        assert!(planner.palm_min_span_m >= 2.0 * bridge.linkage_min_half_closing_m);
+    }
+
     fn table(z: f64) -> BoxObstacle {
         BoxObstacle {
             name: "table".to_owned(),

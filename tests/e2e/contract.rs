@@ -136,12 +136,16 @@ async fn rendered_scenes_with_the_onnx_and_baseline_backends() {
 async fn grasps_past_the_image_border_come_last_and_are_counted() {
     let (server, mut client) = start(settings(BackendKind::Baseline)).await;
     // Straight down from 0.7 m, 160 x 120 px at 150 px: the table is seen
-    // out to x = 0.373 m, the box's top (0.62 m away) out to 0.331 m.
+    // out to x = 0.373 m, the box's top (0.62 m away) out to 0.331 m; a
+    // second box 20 cm nearer the centre stays in view.
     let camera = Camera::looking_at(Vector3::new(0.0, 0.0, 0.7), Vector3::zeros(), 160, 120, 150.0);
     let scene_at = |x: f64| Scene {
         table_z: 0.0,
         table_half: [0.6, 0.4],
-        shapes: vec![Shape::standing_box(0.0, x, 0.0, 0.0, [0.06, 0.09, 0.08])],
+        shapes: vec![
+            Shape::standing_box(0.0, x, 0.0, 0.0, [0.06, 0.09, 0.08]),
+            Shape::standing_box(0.0, x - 0.2, 0.0, 0.0, [0.06, 0.09, 0.08]),
+        ],
     };
     let plan = |x: f64| {
         let mut r = request(&scene_at(x), &camera);

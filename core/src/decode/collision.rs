@@ -26,7 +26,7 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
-use super::hand::{GraspBox, HandConfig, gap_box, hand_boxes, widen};
+use super::hand::{GraspBox, HandConfig, finger_reach, gap_box, hand_boxes, widen};
 use crate::gripper::Gripper;
 use crate::segment::TablePlane;
 use crate::sensor::FieldOfView;
@@ -68,7 +68,7 @@ pub fn hand_out_of_view(
     view: &FieldOfView,
 ) -> bool {
     let open = widen(width_m, hand.opening_clearance_m, gripper);
-    hand_boxes(open, 0.0, 0.0, gripper, hand)[..2]
+    hand_boxes(open, 0.0, 0.0, gripper.finger_depth_m, gripper, hand)[..2]
         .iter()
         .flat_map(GraspBox::corners)
         .any(|c| !view.contains(&(world_from_grasp * Point3::from(c))))
@@ -108,8 +108,16 @@ pub fn hand_collision(
     let open = widen(width_m, hand.opening_clearance_m, gripper);
     let preshaped = widen(open, hand.preshape_margin_m, gripper);
     // Where the hand ends, and the approach behind it (pre-shaped wider).
-    let mut boxes = hand_boxes(open, 0.0, 0.0, gripper, hand).to_vec();
-    boxes.extend(hand_boxes(preshaped, -1e-3, hand.approach_m, gripper, hand));
+    let reach = finger_reach(gripper, hand);
+    let mut boxes = hand_boxes(open, 0.0, 0.0, reach, gripper, hand).to_vec();
+    boxes.extend(hand_boxes(
+        preshaped,
+        -1e-3,
+        hand.approach_m,
+        reach,
+        gripper,
+        hand,
+    ));
 
     // Corner heights above the table: the plane's normal in the grasp frame
     // makes each a dot product.
@@ -125,8 +133,8 @@ pub fn hand_collision(
     // Between the pads, where the hand ends and on the way in: only the
     // grasp's own object may be there.
     let hand_only = boxes.len();
-    boxes.push(gap_box(open, 0.0, 0.0, gripper));
-    boxes.push(gap_box(preshaped, -1e-3, hand.approach_m, gripper));
+    boxes.push(gap_box(open, 0.0, 0.0, reach, gripper));
+    boxes.push(gap_box(preshaped, -1e-3, hand.approach_m, reach, gripper));
     let boxes_f32: Vec<([f32; 3], [f32; 3])> = boxes
         .iter()
         .map(|b| (b.lo.map(|v| v as f32).into(), b.hi.map(|v| v as f32).into()))
@@ -286,9 +294,9 @@ mod tests {
     fn the_palm_and_the_approach_count_and_stray_points_do_not() {
         let (hand, table) = (HandConfig::default(), table_at(0.0));
         let grasp = top_down(0.0, 0.0, 0.04);
-        // A shelf over the grasp, 12 cm above the fingertips: only the swept
-        // approach passes through it (pads and palm end 9 cm above them).
-        let shelf = block([-0.05, -0.05, 0.16], [0.05, 0.05, 0.165]);
+        // A shelf over the grasp, 25 cm above the fingertips: only the swept
+        // approach passes through it (the palm ends 20.8 cm above them).
+        let shelf = block([-0.05, -0.05, 0.29], [0.05, 0.05, 0.295]);
         assert!(collides(&grasp, 0.06, &hand, &table, &shelf));
         let short = HandConfig {
             approach_m: 0.0,
@@ -307,6 +315,51 @@ mod tests {
         };
         let object = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
         assert!(!collides(&grasp, 0.03, &off, &table, &object));
+    }
+
+    #[test]
+    fn the_fingers_reach_back_to_the_palm_and_the_palm_spans_the_linkage() {
+        let (hand, table) = (HandConfig::default(), table_at(0.0));
+        // A 4 cm wide, 9 cm tall box grasped 3 cm above the table: its top
+        // is 6 cm behind the fingertips, between the 2F-140's fingers; a
+        // hand whose palm began behind its 4 cm pads would meet it.
+        let tall = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.09]);
+        let grasp = top_down(0.0, 0.0, 0.03);
+        assert!(!collides(&grasp, 0.04, &hand, &table, &tall));
+        let short = HandConfig {
+            finger_length_m: 0.0,
+            ..hand.clone()
+        };
+        assert!(collides(&grasp, 0.04, &short, &table, &tall));
+        // 12 cm tall, its top reaches the palm.
+        let taller = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.12]);
+        assert!(collides(&grasp, 0.04, &hand, &table, &taller));
+
+        // A neighbour 12 cm tall, 5.5 cm out along the closing direction:
+        // clear of the pads (open to 8 cm on the way in), but under the
+        // linkage, which spans 14 cm at any opening; turned a quarter turn,
+        // the grasp passes it.
+        let gripper = Gripper::default();
+        let identity = Isometry3::identity();
+        let framed =
+            |points: Vec<[f32; 3]>| -> Framed { (points, Vector3::repeat(-1.0), Vector3::repeat(1.0)) };
+        let target = framed(block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]));
+        let tall_neighbour = framed(block([0.055, -0.02, 0.0], [0.08, 0.02, 0.12]));
+        let objects = [
+            obstacle_of(&identity, &target),
+            obstacle_of(&identity, &tall_neighbour),
+        ];
+        let hit = |grasp: &Isometry3<f64>, hand: &HandConfig| {
+            hand_collision(grasp, 0.04, &gripper, hand, &table, &objects, Some(0))
+        };
+        assert_eq!(hit(&grasp, &hand), Some(Collision::Object(1)));
+        let narrow = HandConfig {
+            palm_min_span_m: 0.0,
+            ..hand.clone()
+        };
+        assert_eq!(hit(&grasp, &narrow), None);
+        let turned = grasp * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2);
+        assert_eq!(hit(&turned, &hand), None);
     }
 
     /// A 640 x 480 camera 1 m above the origin looking straight down.

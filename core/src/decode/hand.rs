@@ -1,15 +1,17 @@
 //! The hand as the planner checks it: boxes in the grasp frame (DESIGN.md:
 //! +z the approach, +x the closing direction, origin midway between the
-//! fingertips), as the simulator models the Robotiq 2F-140
-//! (`sim::grasp::GripperModel`):
+//! fingertips), the Robotiq 2F-140 as the robot-bridge models it
+//! (`robot-bridge/src/collision.rs`, `HandModel`):
 //!
-//! - two pads, `pad_thickness_m` thick along x, the gripper's finger width
-//!   along y and its finger depth along z, their inner faces half the
-//!   opening from the origin; the opening is the grasp's width plus
-//!   `opening_clearance_m`, as the executor opens before closing;
-//! - the palm behind them, `palm_depth_m` along z, `palm_width_m` along y,
-//!   spanning both pads along x;
-//! - the gap between the pads, where only the grasp's own object may be.
+//! - two fingers, `pad_thickness_m` thick along x and the gripper's finger
+//!   width along y, their inner faces half the opening from the origin,
+//!   from the fingertips back `finger_length_m` (at least the pads' depth);
+//!   the opening is the grasp's width plus `opening_clearance_m`, as the
+//!   executor opens before closing;
+//! - the palm behind them (the linkage and the housing), `palm_depth_m`
+//!   along z, `palm_width_m` along y, spanning both fingers along x and at
+//!   least `palm_min_span_m`;
+//! - the gap between the fingers, where only the grasp's own object may be.
 //!
 //! [`HandConfig`] holds the shape and how strictly it is checked
 //! (`collision`) and repaired (`repair`).
@@ -29,10 +31,18 @@ pub struct HandConfig {
     /// (m, within the stroke): the executor's margin (`sim`'s
     /// `GripperModel::clearance_m`). The hand is checked at that opening.
     pub opening_clearance_m: f64,
-    /// Gripper body behind the pads: depth along the approach (m).
+    /// From the fingertips back to the palm, the first part of the hand
+    /// that spans the gap between the fingers (m; at least the gripper's
+    /// pad depth): the fingers, and the gap only the grasp's own object may
+    /// be in, reach this far.
+    pub finger_length_m: f64,
+    /// Gripper body behind the fingers: depth along the approach (m).
     pub palm_depth_m: f64,
     /// Gripper body extent across the closing direction (m).
     pub palm_width_m: f64,
+    /// Gripper body extent along the closing direction, at least (m; it
+    /// spans the fingers at any opening).
+    pub palm_min_span_m: f64,
     /// How far back along the approach the hand is swept (m).
     pub approach_m: f64,
     /// Extra opening while approaching (m), within the stroke.
@@ -70,14 +80,20 @@ pub struct HandConfig {
 }
 
 impl Default for HandConfig {
-    /// The Robotiq 2F-140 as `sim` models it; a 10 cm approach.
+    /// The Robotiq 2F-140; a 10 cm approach. The fingers and the palm are
+    /// the robot-bridge's `HandModel` (the referee's collision meshes,
+    /// bounded over the stroke): the linkage, which spans the gap at least
+    /// 14 cm wide, begins 72 mm behind the fingertips when fully open
+    /// (97 mm at a 6 cm opening), and the housing ends 136 mm behind that.
     fn default() -> Self {
         Self {
             enabled: true,
             pad_thickness_m: 0.01,
             opening_clearance_m: 0.02,
-            palm_depth_m: 0.05,
+            finger_length_m: 0.072,
+            palm_depth_m: 0.136,
             palm_width_m: 0.075,
+            palm_min_span_m: 0.14,
             approach_m: 0.10,
             preshape_margin_m: 0.02,
             min_points: 3,
@@ -120,18 +136,25 @@ pub(super) fn widen(width_m: f64, by: f64, gripper: &Gripper) -> f64 {
     (width_m + by).min(gripper.max_width_m).max(width_m)
 }
 
-/// The hand's boxes for an opening `width_m`, the fingertips at `tip_z`
-/// and swept back to `tip_z - sweep` (grasp frame).
+/// How far back from the fingertips the fingers reach before the palm (m).
+pub(super) fn finger_reach(gripper: &Gripper, hand: &HandConfig) -> f64 {
+    hand.finger_length_m.max(gripper.finger_depth_m)
+}
+
+/// The hand's boxes for an opening `width_m`, the fingertips at `tip_z`,
+/// the fingers `reach` long and swept back to `tip_z - sweep` (grasp
+/// frame): the two fingers, then the palm.
 pub(super) fn hand_boxes(
     width_m: f64,
     tip_z: f64,
     sweep: f64,
+    reach: f64,
     gripper: &Gripper,
     hand: &HandConfig,
 ) -> [GraspBox; 3] {
     let (half_w, t) = (width_m / 2.0, hand.pad_thickness_m);
     let half_pad_y = gripper.finger_width_m / 2.0;
-    let pad_lo_z = tip_z - gripper.finger_depth_m - sweep;
+    let pad_lo_z = tip_z - reach - sweep;
     let pad = |sign: f64| {
         let (a, b) = (sign * half_w, sign * (half_w + t));
         GraspBox {
@@ -139,24 +162,26 @@ pub(super) fn hand_boxes(
             hi: Vector3::new(a.max(b), half_pad_y, tip_z),
         }
     };
-    let palm_hi_z = tip_z - gripper.finger_depth_m;
+    let palm_hi_z = tip_z - reach;
+    let half_span = (half_w + t).max(hand.palm_min_span_m / 2.0);
     let palm = GraspBox {
         lo: Vector3::new(
-            -(half_w + t),
+            -half_span,
             -hand.palm_width_m / 2.0,
             palm_hi_z - hand.palm_depth_m - sweep,
         ),
-        hi: Vector3::new(half_w + t, hand.palm_width_m / 2.0, palm_hi_z),
+        hi: Vector3::new(half_span, hand.palm_width_m / 2.0, palm_hi_z),
     };
     [pad(-1.0), pad(1.0), palm]
 }
 
-/// The space between the pads for an opening `width_m`, the fingertips at
-/// `tip_z` and swept back to `tip_z - sweep` (grasp frame).
-pub(super) fn gap_box(width_m: f64, tip_z: f64, sweep: f64, gripper: &Gripper) -> GraspBox {
+/// The space between the fingers for an opening `width_m`, the fingertips
+/// at `tip_z`, `reach` back from them and swept back to `tip_z - sweep`
+/// (grasp frame).
+pub(super) fn gap_box(width_m: f64, tip_z: f64, sweep: f64, reach: f64, gripper: &Gripper) -> GraspBox {
     let (half_w, half_pad_y) = (width_m / 2.0, gripper.finger_width_m / 2.0);
     GraspBox {
-        lo: Vector3::new(-half_w, -half_pad_y, tip_z - gripper.finger_depth_m - sweep),
+        lo: Vector3::new(-half_w, -half_pad_y, tip_z - reach - sweep),
         hi: Vector3::new(half_w, half_pad_y, tip_z),
     }
 }

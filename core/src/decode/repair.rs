@@ -25,7 +25,7 @@
 use nalgebra::{Isometry3, Vector3};
 
 use super::collision::{Obstacle, points_inside};
-use super::hand::{GraspBox, HandConfig, gap_box, widen};
+use super::hand::{GraspBox, HandConfig, finger_reach, gap_box, widen};
 use crate::gripper::Gripper;
 use crate::segment::TablePlane;
 
@@ -51,7 +51,7 @@ pub fn fit_opening(
         lo: Vector3::new(
             -gripper.max_width_m,
             -half_pad_y,
-            -(gripper.finger_depth_m + hand.approach_m),
+            -(finger_reach(gripper, hand) + hand.approach_m),
         ),
         hi: Vector3::new(gripper.max_width_m, half_pad_y, 0.0),
     };
@@ -144,7 +144,7 @@ pub fn contact_slopes(
     object: &Obstacle<'_>,
 ) -> [Option<f64>; 2] {
     let open = widen(width_m, hand.opening_clearance_m, gripper);
-    let between = gap_box(open, 0.0, 0.0, gripper);
+    let between = gap_box(open, 0.0, 0.0, gripper.finger_depth_m, gripper);
     let inside: Vec<Vector3<f64>> = points_inside(world_from_grasp, &between, object)
         .iter()
         .map(|g| Vector3::new(f64::from(g[0]), f64::from(g[1]), f64::from(g[2])))
@@ -400,33 +400,33 @@ mod tests {
     fn a_grasp_goes_deeper_where_the_hand_and_the_table_allow() {
         let (hand, table, gripper) = (HandConfig::default(), table_at(0.0), Gripper::default());
         let identity = Isometry3::identity();
-        // A 4 x 4 cm box 10 cm tall, fingertips 3 cm below its top: the
-        // palm (behind the 4 cm pads) is 1 cm over it, so the hand passes
-        // 5 mm deeper.
+        // A 4 x 4 cm box 13 cm tall, fingertips 6.2 cm below its top: the
+        // palm (7.2 cm behind the fingertips) is 1 cm over it, so the hand
+        // passes 5 mm deeper.
         let own: Framed = (
-            block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.10]),
+            block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.13]),
             Vector3::repeat(-1.0),
             Vector3::repeat(1.0),
         );
         let objects = [obstacle_of(&identity, &own)];
         let hit =
             |pose: &Isometry3<f64>| hand_collision(pose, 0.04, &gripper, &hand, &table, &objects, Some(0));
-        let grasp = top_down(0.0, 0.0, 0.07);
+        let grasp = top_down(0.0, 0.0, 0.068);
         assert_eq!(hit(&grasp), None);
         let deeper =
             deepen(&grasp, 0.04, &gripper, &hand, &table, 0.003, |p| hit(p).is_none()).expect("deeper");
         assert!(
-            (deeper.translation.z - (0.07 - hand.deepen_m)).abs() < 1e-12,
+            (deeper.translation.z - (0.068 - hand.deepen_m)).abs() < 1e-12,
             "{deeper}"
         );
         assert!(deeper.rotation.angle_to(&grasp.rotation) < 1e-12);
-        // Fingertips already 3.6 cm below the top: 5 mm more puts the palm
+        // Fingertips already 6.8 cm below the top: 5 mm more puts the palm
         // 1 mm into it, 2.5 mm leaves it 1.5 mm over.
-        let grasp = top_down(0.0, 0.0, 0.064);
+        let grasp = top_down(0.0, 0.0, 0.062);
         let deeper =
             deepen(&grasp, 0.04, &gripper, &hand, &table, 0.003, |p| hit(p).is_none()).expect("half");
         assert!(
-            (deeper.translation.z - (0.064 - hand.deepen_m / 2.0)).abs() < 1e-12,
+            (deeper.translation.z - (0.062 - hand.deepen_m / 2.0)).abs() < 1e-12,
             "{deeper}"
         );
         // Fingertips 6 mm over the table: 2.5 mm deeper leaves 3.5 mm, 5 mm

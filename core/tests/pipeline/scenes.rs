@@ -488,7 +488,13 @@ fn grasps_reaching_past_the_image_border_are_ranked_last() {
     // Straight down from 0.7 m, 160 x 120 px at 150 px: columns run along
     // world x, and the table is seen out to x = 80 / 150 * 0.7 = 0.373 m.
     let camera = Camera::looking_at(Vector3::new(0.0, 0.0, 0.7), Vector3::zeros(), 160, 120, 150.0);
-    let hand = HandConfig::default();
+    // A palm no wider than the opening: this low box's side grasps closing
+    // upright then clear the table, and it has grasps on both sides of the
+    // border.
+    let hand = HandConfig {
+        palm_min_span_m: 0.0,
+        ..HandConfig::default()
+    };
     let unbounded = HandConfig {
         out_of_view_last: false,
         ..hand.clone()
