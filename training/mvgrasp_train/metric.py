@@ -177,7 +177,7 @@ def miss_kinds(pred_maps, ds, indices, near_px=2.0, ok=None):
     """Why the views with positives are missed: the best pixel more than
     `near_px` from every positive (`missed_far`: which pixel wins), or
     within it with the angle or opening off (`missed_heads`); and the median
-    number of positives of the views hit and of those missed (MODEL_CARD.md:
+    number of positives of the views hit and of those missed (models/RECIPES.md:
     the misses are mostly views whose labels pass few grasps). `ok`: the
     judgements of `hits`, where the caller has them already."""
     if ok is None:

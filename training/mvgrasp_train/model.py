@@ -21,7 +21,7 @@ weights computes, and `train --init` can start it from a `narrow` run.
 
 Variant `wide`: `narrow` with twice the channels in every layer (16 ... 64
 ... 16), about 4x its arithmetic, to ask whether the network's size is
-what holds its accuracy (MODEL_CARD.md: fine-tunes fit their training views
+what holds its accuracy (models/RECIPES.md: fine-tunes fit their training views
 no better than held-out ones). `widen` loads a `narrow` run into it so
 that it starts as that run's function: the old channels keep their
 weights, the new ones take no part in the old ones or the heads until

@@ -94,7 +94,7 @@ def weighted_mse(pred, target, positive_weight=1.0, balance_px=0.0, empty_view_w
     `balance_px` A > 0, in a view with n < A positive pixels those count
     A / n times more again, so that every view's positives weigh at least
     as much as A pixels' worth (views whose labels pass a few grasps on a
-    large surface are most of the misses: models/MODEL_CARD.md). With
+    large surface are most of the misses: models/RECIPES.md). With
     `empty_view_weight` E, the quality error of a view without any positive
     pixel counts E times: the planner's `all` policy acts on the best
     grasp across an object's views, so a quality that rises on a view the
