@@ -113,7 +113,7 @@ enum Command {
     },
     /// Clear-the-table in physics with the planner in the loop: success and
     /// removal rates per scenario and planner setting, failure causes, and
-    /// planning times (see `eval.rs`). Writes OUT/eval.md and OUT/eval.json.
+    /// planning times (see the `eval` module). Writes OUT/eval.md and OUT/eval.json.
     Eval {
         /// The ONNX model (the service's default).
         #[arg(long, default_value_os_t = ModelSettings::default().path)]

@@ -7,7 +7,7 @@
 //!
 //! [`settle`] is also what happens to a pile between two grasps: when an
 //! object is taken out, the ones that leaned on it fall into their new rest
-//! (`eval.rs` settles pile scenes after every removal).
+//! (`eval` settles pile scenes after every removal).
 
 use mvgrasp_core::rng::SplitMix64;
 use parry3d::math::{Pose, Rotation, Vector};
