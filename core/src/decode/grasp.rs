@@ -32,10 +32,9 @@ pub struct DecodeConfig {
     /// Radius searched for the nearest surface around a peak (m).
     pub surface_radius_m: f32,
     /// How far the fingertips go past that surface (m). 3 cm of the 2F-140's
-    /// 4 cm pads: in `sim eval` (tuning seeds 800000, isolated / packed /
-    /// pile, `top-down` 0.1) 1.5 cm slipped in 39 of 139 attempts, 3 cm in
-    /// 12 of 130; at 4 cm the palm meets the object and the hand check
-    /// refuses nearly every grasp (models/HISTORY.md).
+    /// 4 cm pads: in `sim eval` 1.5 cm slipped in 39 of 139 attempts, 3 cm in
+    /// 12 of 130 (models/HISTORY.md); on the referee's train pool 4 cm was
+    /// level (docs/experiments/2026-11-28-finger-length.md).
     pub insertion_m: f64,
     /// Smallest distance kept between a pad and the table (m).
     pub table_clearance_m: f64,

@@ -84,7 +84,8 @@ impl Default for HandConfig {
     /// the robot-bridge's `HandModel` (the referee's collision meshes,
     /// bounded over the stroke): the linkage, which spans the gap at least
     /// 14 cm wide, begins 72 mm behind the fingertips when fully open
-    /// (97 mm at a 6 cm opening), and the housing ends 136 mm behind that.
+    /// (97 mm at a 6 cm opening); the palm (linkage, then housing) reaches
+    /// 136 mm further back, to the flange when fully open.
     fn default() -> Self {
         Self {
             enabled: true,
