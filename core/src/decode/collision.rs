@@ -341,8 +341,6 @@ mod tests {
         // the grasp passes it.
         let gripper = Gripper::default();
         let identity = Isometry3::identity();
-        let framed =
-            |points: Vec<[f32; 3]>| -> Framed { (points, Vector3::repeat(-1.0), Vector3::repeat(1.0)) };
         let target = framed(block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]));
         let tall_neighbour = framed(block([0.055, -0.02, 0.0], [0.08, 0.02, 0.12]));
         let objects = [
@@ -485,20 +483,17 @@ mod tests {
     fn only_the_grasps_own_object_may_lie_between_the_pads() {
         let (hand, table, gripper) = (HandConfig::default(), table_at(0.0), Gripper::default());
         let identity = Isometry3::identity();
-        let framed = |points: &[[f32; 3]]| -> Framed {
-            (points.to_vec(), Vector3::repeat(-1.0), Vector3::repeat(1.0))
-        };
         // A 4 cm box, grasped 2 cm below its top, 6 cm wide (the pads open
         // to 8 cm); a flat object lying across its top: between the pads,
         // clear of the pads and of the palm.
-        let target = framed(&block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]));
-        let on_top = framed(&block([-0.02, -0.01, 0.065], [0.02, 0.01, 0.075]));
+        let target = framed(block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]));
+        let on_top = framed(block([-0.02, -0.01, 0.065], [0.02, 0.01, 0.075]));
         let grasp = top_down(0.0, 0.0, 0.04);
         let objects = [obstacle_of(&identity, &target), obstacle_of(&identity, &on_top)];
         let hit = |own| hand_collision(&grasp, 0.06, &gripper, &hand, &table, &objects, own);
         assert_eq!(hit(Some(0)), Some(Collision::Object(1)));
         // Seen as one object with the box, the hand closes on both: allowed.
-        let merged = framed(&[target.0.clone(), on_top.0.clone()].concat());
+        let merged = framed([target.0.clone(), on_top.0.clone()].concat());
         let collides = |objects: &[Obstacle<'_>], own| {
             hand_collides(&grasp, 0.06, &gripper, &hand, &table, objects, own)
         };
@@ -507,7 +502,7 @@ mod tests {
         // Without a known own object, every object's points count there.
         assert!(collides(&one, None));
         // The flat object 5 cm aside, clear of the pads' paths: no collision.
-        let aside = framed(&block([-0.02, 0.05, 0.065], [0.02, 0.07, 0.075]));
+        let aside = framed(block([-0.02, 0.05, 0.065], [0.02, 0.07, 0.075]));
         assert!(!collides(
             &[obstacle_of(&identity, &target), obstacle_of(&identity, &aside)],
             Some(0)

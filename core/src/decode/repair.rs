@@ -348,8 +348,6 @@ mod tests {
     fn a_grasp_into_a_neighbour_turns_away_from_it() {
         let (hand, table, gripper) = (HandConfig::default(), table_at(0.0), Gripper::default());
         let identity = Isometry3::identity();
-        let framed =
-            |points: Vec<[f32; 3]>| -> Framed { (points, Vector3::repeat(-1.0), Vector3::repeat(1.0)) };
         // A 4 x 6 cm box (6 cm along y), a neighbour 1.5 cm off its side
         // along x: closing along x, 4 cm wide, the right pad comes down on it.
         let own = framed(block([-0.02, -0.03, 0.0], [0.02, 0.03, 0.06]));
@@ -403,11 +401,7 @@ mod tests {
         // A 4 x 4 cm box 13 cm tall, fingertips 6.2 cm below its top: the
         // palm (7.2 cm behind the fingertips) is 1 cm over it, so the hand
         // passes 5 mm deeper.
-        let own: Framed = (
-            block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.13]),
-            Vector3::repeat(-1.0),
-            Vector3::repeat(1.0),
-        );
+        let own = framed(block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.13]));
         let objects = [obstacle_of(&identity, &own)];
         let hit =
             |pose: &Isometry3<f64>| hand_collision(pose, 0.04, &gripper, &hand, &table, &objects, Some(0));

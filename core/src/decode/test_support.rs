@@ -76,6 +76,12 @@ pub(super) fn block(lo: [f64; 3], hi: [f64; 3]) -> Vec<[f32; 3]> {
 /// Local points with their box, framed by `world_from_object`.
 pub(super) type Framed = (Vec<[f32; 3]>, Vector3<f64>, Vector3<f64>);
 
+/// `points` (object frame) with the 2 m cube about the origin as their
+/// box: wide enough for any test scene.
+pub(super) fn framed(points: Vec<[f32; 3]>) -> Framed {
+    (points, Vector3::repeat(-1.0), Vector3::repeat(1.0))
+}
+
 pub(super) fn obstacle_of<'a>(
     world_from_object: &'a Isometry3<f64>,
     (local, lo, hi): &'a Framed,
