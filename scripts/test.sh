@@ -25,6 +25,12 @@ echo "== cargo fmt --check"
 cargo fmt --all -- --check
 echo "== cargo clippy"
 cargo clippy --workspace --all-targets -- -D warnings
+echo "== layering: the sim library without its service feature builds, and depends on no gRPC crate"
+cargo clippy -p mvgrasp-sim --no-default-features --lib --tests -- -D warnings
+if cargo tree -p mvgrasp-sim --no-default-features -e normal | grep -E "tonic|prost|mvgrasp-(server|client|proto)"; then
+    echo "the sim library reaches the service crates above without its service feature" >&2
+    exit 1
+fi
 echo "== cargo clippy, server with the CUDA backend compiled in (it runs only on a GPU machine)"
 cargo clippy -p mvgrasp-server --features cuda -- -D warnings
 echo "== cargo doc"

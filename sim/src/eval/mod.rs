@@ -42,7 +42,8 @@
 //!
 //! Files: `setting` (what a run asks of the planner), `episode` (what an
 //! episode is and records), `source` and `remote` (where grasps come from:
-//! in process, or a running service), `run` (the loop), `judge` (the
+//! in process, or a running service: `remote` only with the `service`
+//! feature), `run` (the loop), `judge` (the
 //! approach check against physics), `stats` (summaries, the bootstrap),
 //! `report` (JSON and tables).
 
@@ -50,8 +51,6 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
-use mvgrasp_client::request::{depth_request, pose_from_message};
-use mvgrasp_client::{PlannerClient, pb};
 use mvgrasp_core::rng::SplitMix64;
 use mvgrasp_core::{
     ClusterConfig, CreaseConfig, FieldOfView, Grasp, GraspNet, ModelContract, Plan, PlanOptions, Planner,
@@ -70,6 +69,7 @@ use crate::scene::{Scenario, Scene};
 
 mod episode;
 mod judge;
+#[cfg(feature = "service")]
 mod remote;
 mod report;
 mod run;
@@ -79,6 +79,7 @@ mod stats;
 
 pub use episode::*;
 pub use judge::*;
+#[cfg(feature = "service")]
 pub use remote::*;
 pub use report::*;
 pub use run::*;

@@ -1,5 +1,8 @@
 //! Grasps from a running service over gRPC.
 
+use mvgrasp_client::request::{depth_request, pose_from_message};
+use mvgrasp_client::{PlannerClient, pb};
+
 use super::*;
 
 /// A running server, over gRPC.
