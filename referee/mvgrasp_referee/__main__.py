@@ -44,6 +44,11 @@ def parse(argv):
     p.add_argument("--noise", action="store_true", help="Kinect-like depth noise")
     p.add_argument("--workers", type=int, default=max(1, min(2, os.cpu_count() or 1)))
     p.add_argument("--snapshots", type=int, default=12, help="failure snapshots to write (PNG)")
+    p.add_argument("--attempt-views", default=None, metavar="DIR",
+                   help="write each tried grasp's view and outcome here, for training (attempt_views.py)")
+    p.add_argument("--attempt-alternatives", type=int, default=0, metavar="K",
+                   help="with --attempt-views: also try up to K grasps ranked below each attempt's own, "
+                   "from the same state (put back after)")
     p.add_argument("--bridge", default=None, help="robot-bridge binary (default target/release/robot-bridge)")
     p.add_argument("--out", required=True)
     return p.parse_args(argv)
@@ -82,13 +87,16 @@ def _init(args):
     _worker["bridge"] = bridge.Bridge(args.bridge, gripper.tcp_in_flange(probe), travel)
     _worker["planner"] = planner.OraclePlanner() if args.oracle else planner.Planner(
         args.server, args.policy, args.min_quality, args.max_grasps,
-        view_cascade=False if args.no_view_cascade else None, approach_cone=args.approach_cone)
+        view_cascade=False if args.no_view_cascade else None, approach_cone=args.approach_cone,
+        with_views=args.attempt_views is not None)
     _worker["args"] = args
     _worker["renderers"] = {}
+    if args.attempt_views:
+        _worker["contract"] = _worker["planner"].contract()
 
 
 def _run(job):
-    from . import protocol, report  # noqa: PLC0415
+    from . import attempt_views, protocol, report  # noqa: PLC0415
 
     scenario, pool, cam, episode = job
     args = _worker["args"]
@@ -100,8 +108,13 @@ def _run(job):
         return report.snapshot(args.out, cell, pose, depth, entry, record, _worker["renderers"])
 
     start = time.perf_counter()
+    recorder = attempt_views.Recorder() if args.attempt_views else None
     record = protocol.run_episode(_worker["planner"], _worker["bridge"], scenario, pool, cam, args.seed, episode,
-                                  args.resolution, args.noise, take if args.snapshots > 0 else None)
+                                  args.resolution, args.noise, take if args.snapshots > 0 else None,
+                                  recorder, args.attempt_alternatives)
+    if recorder is not None:
+        record["attempt_views"] = recorder.write(args.attempt_views, scenario, cam, args.seed, episode,
+                                                 _worker["contract"]["input_size_px"])
     record["wall_s"] = round(time.perf_counter() - start, 2)
     return record
 
@@ -111,6 +124,11 @@ def main(argv=None):
     from . import assets, pools, report  # noqa: PLC0415
 
     pools.check_split()
+    if args.attempt_views is not None:
+        if args.oracle:
+            raise SystemExit("referee: --attempt-views records the planner's grasps, not the oracle's")
+        if any(name != "train" for name in args.pools.split(",")):
+            raise SystemExit("referee: --attempt-views records training data: --pools train only")
     if args.bridge is None:
         args.bridge = os.path.join(assets.ROOT, "target", "release", "robot-bridge")
     os.makedirs(args.out, exist_ok=True)
@@ -140,6 +158,13 @@ def main(argv=None):
             "oracle": args.oracle, "workers": args.workers, "wall_s": time.perf_counter() - start,
             "command": "scripts/referee.sh " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))}
     table = report.write(args.out, meta, episodes)
+    if args.attempt_views:
+        from . import attempt_views  # noqa: PLC0415
+
+        attempt_views.write_manifest(args.attempt_views, info, _worker["contract"],
+                                     sum(e.get("attempt_views", 0) for e in episodes),
+                                     {"pools": args.pools, "seed": args.seed, "alternatives": args.attempt_alternatives,
+                                      "command": meta["command"]})
     print(report.markdown(meta, table))
     _worker["bridge"].close()
     return 0

@@ -27,13 +27,15 @@ class Planner:
     """A gRPC connection to the service, and the request options of a setting."""
 
     def __init__(self, address, policy="default", min_quality=None, max_grasps=10, timeout_s=30.0,
-                 view_cascade=None, approach_cone=None):
+                 view_cascade=None, approach_cone=None, with_views=False):
         import grpc  # noqa: PLC0415
 
         if policy not in POLICIES:
             raise ValueError(f"unknown view policy {policy!r} (one of {', '.join(POLICIES)})")
         self.pb, rpc = _client_module().stubs()
-        self.channel = grpc.insecure_channel(address)
+        # With views the answer carries every rendered view and its maps (MBs).
+        self.with_views = with_views
+        self.channel = grpc.insecure_channel(address, options=[("grpc.max_receive_message_length", 256 << 20)])
         self.stub = rpc.GraspPlannerStub(self.channel)
         self.policy, self.min_quality, self.max_grasps = policy, min_quality, max_grasps
         self.timeout_s = timeout_s
@@ -49,9 +51,18 @@ class Planner:
         info = self.stub.GetModelInfo(self.pb.GetModelInfoRequest(), timeout=self.timeout_s)
         return {"model_version": info.model_version, "backend": info.backend}
 
+    def contract(self):
+        """What the network reads: its input size, pixel size and normalisation."""
+        info = self.stub.GetModelInfo(self.pb.GetModelInfoRequest(), timeout=self.timeout_s)
+        return {"input_size_px": info.input_size_px, "pixel_size_m": info.pixel_size_m,
+                "normalisation": info.normalisation}
+
     def plan(self, depth, pose, seed=0):
         """Ranked grasps, detected objects and the table plane for one frame,
-        and the call's wall time in ms."""
+        and the call's wall time in ms; no grasps and the planner's `error`
+        for a frame it refuses as invalid."""
+        import grpc  # noqa: PLC0415
+
         pb = self.pb
         fx, fy, cx, cy = pose.intrinsics
         t = pose.world_from_camera
@@ -75,17 +86,35 @@ class Planner:
             world_from_camera=pb.Pose(position=pb.Vector3(x=t[0, 3], y=t[1, 3], z=t[2, 3]),
                                       orientation=pb.Quaternion(x=qx, y=qy, z=qz, w=qw)),
             workspace=pb.Workspace(min=pb.Vector3(x=x0, y=y0, z=z0), max=pb.Vector3(x=x1, y=y1, z=z1)),
+            include_debug_views=self.with_views,
             **options,
         )
         start = time.perf_counter()
-        response = self.stub.PlanGrasps(request, timeout=self.timeout_s)
+        try:
+            response = self.stub.PlanGrasps(request, timeout=self.timeout_s)
+        except grpc.RpcError as e:
+            # A frame the planner refuses (say, a random camera that sees
+            # nothing of the workspace) offers no grasp, and says why; any
+            # other error (the server gone) ends the run.
+            if e.code() != grpc.StatusCode.INVALID_ARGUMENT:
+                raise
+            return {"grasps": [], "objects": [], "table": None, "server_ms": 0.0,
+                    "call_ms": (time.perf_counter() - start) * 1000.0, "views": {},
+                    "error": f"{e.code().name}: {e.details()}"}
         elapsed_ms = (time.perf_counter() - start) * 1000.0
         grasps = [{
             "position": [g.pose.position.x, g.pose.position.y, g.pose.position.z],
             "orientation": [g.pose.orientation.x, g.pose.orientation.y, g.pose.orientation.z, g.pose.orientation.w],
             "width_m": g.width_m, "quality": g.quality, "object": g.object_id,
             "view": pb.ViewAxis.Name(g.view).removeprefix("VIEW_AXIS_").lower(),
+            "pixel": (g.pixel_u, g.pixel_v),
         } for g in response.grasps]
+        # The network's input of each view, by (object, view name); the first of equals.
+        views = {}
+        for v in response.debug_views:
+            key = (v.object_id, pb.ViewAxis.Name(v.axis).removeprefix("VIEW_AXIS_").lower())
+            if key not in views:
+                views[key] = np.frombuffer(v.image, dtype="<f4").reshape(v.size_px, v.size_px)
         objects = [{
             "id": o.id,
             "position": [o.world_from_object.position.x, o.world_from_object.position.y,
@@ -99,7 +128,7 @@ class Planner:
         table = {"normal": [response.table.normal.x, response.table.normal.y, response.table.normal.z],
                  "offset_m": response.table.offset_m}
         return {"grasps": grasps, "objects": objects, "table": table, "server_ms": response.timings.total_ms,
-                "call_ms": elapsed_ms}
+                "call_ms": elapsed_ms, "views": views}
 
     def close(self):
         self.channel.close()

@@ -31,6 +31,41 @@ def restore(cell, state):
     mujoco.mj_forward(cell.model, d)
 
 
+def full_state(cell):
+    """Everything the simulation's next step depends on (MuJoCo's
+    integration state: with the solver's warm start, unlike `snapshot`)."""
+    spec = mujoco.mjtState.mjSTATE_INTEGRATION
+    state = np.empty(mujoco.mj_stateSize(cell.model, spec))
+    mujoco.mj_getState(cell.model, cell.data, state, spec)
+    return state
+
+
+def set_full_state(cell, state):
+    mujoco.mj_setState(cell.model, cell.data, state, mujoco.mjtState.mjSTATE_INTEGRATION)
+    mujoco.mj_forward(cell.model, cell.data)
+
+
+def _try_alternatives(cell, before, ask, grasps, start, count, remaining, table, record):
+    """Up to `count` reachable grasps from `grasps[start:]`, each run from the
+    full state `before` and passed to `record(index, outcome, target)`; the
+    state after the caller's own attempt is put back exactly at the end."""
+    after = full_state(cell)
+    tried = 0
+    while tried < count and start < len(grasps):
+        set_full_state(cell, before)
+        answer = ask(start)
+        if answer["grasp_index"] is None:
+            break
+        k = start + answer["grasp_index"]
+        target = target_of(cell, grasps[k], remaining)
+        outcome, _ = executor.execute(cell, answer["steps"], target, table)
+        start = k + 1
+        if outcome != "unreachable-sim":
+            record(k, outcome, target)
+            tried += 1
+    set_full_state(cell, after)
+
+
 def target_of(cell, grasp, remaining):
     """The object nearest the grasp centre (the one it is meant for)."""
     p = np.array(grasp["position"])
@@ -47,8 +82,12 @@ def target_of(cell, grasp, remaining):
 
 
 def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, resolution="640x480", noise=False,
-                snapshots=None):
-    """One episode; returns its record (attempts and counts)."""
+                snapshots=None, recorder=None, alternatives=0):
+    """One episode; returns its record (attempts and counts). With a
+    `recorder` (attempt_views.Recorder), each tried grasp's view and outcome
+    are recorded, and after each attempt up to `alternatives` grasps ranked
+    below it are tried from the same state, recorded, and the state put
+    back (the episode goes on from its own attempt)."""
     cell, specs = scenes.make(scenario, pool, seed, episode)
     rng = np.random.default_rng([seed, episode, 13])
     pose = cammod.sample_pose(camera_kind, rng, resolution)
@@ -81,6 +120,8 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                      "refused": []}
             if not plan["grasps"]:
                 entry["outcome"] = "no-grasp"
+                if "error" in plan:
+                    entry["planner_error"] = plan["error"]
                 # Why, summed over the detected objects (the planner's own count).
                 entry["refused_by_planner"] = {
                     cause: sum(o.get("refused", {}).get(cause, 0) for o in plan["objects"])
@@ -90,13 +131,17 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                 break
             obstacles = bridge_scene(plan)
             grasps = plan["grasps"][:MAX_GRASPS_TRIED]
+            index_of = {o["id"]: k for k, o in enumerate(plan["objects"])}
+
+            def ask(start):
+                asked = [{"position": g["position"], "orientation": g["orientation"], "width_m": g["width_m"],
+                          "quality": g["quality"], "object": index_of.get(g["object"])} for g in grasps[start:]]
+                return bridge.plan(asked, obstacles, cell.arm_q())
+
             outcome, details = None, {}
             start = 0
             while start < len(grasps):
-                index_of = {o["id"]: k for k, o in enumerate(plan["objects"])}
-                asked = [{"position": g["position"], "orientation": g["orientation"], "width_m": g["width_m"],
-                          "quality": g["quality"], "object": index_of.get(g["object"])} for g in grasps[start:]]
-                answer = bridge.plan(asked, obstacles, cell.arm_q())
+                answer = ask(start)
                 if answer["grasp_index"] is None:
                     entry["unreachable"] += len(grasps) - start
                     entry["refused"] += [r["reason"] for r in answer["refused"]][:3]
@@ -107,6 +152,7 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                 grasp = grasps[chosen]
                 target = target_of(cell, grasp, remaining)
                 state = snapshot(cell)
+                before = full_state(cell) if alternatives > 0 else None
                 outcome, details = executor.execute(cell, answer["steps"], target, table)
                 if outcome == "unreachable-sim":
                     entry["unreachable"] += 1
@@ -120,6 +166,13 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                               "grasp": {"position": [round(v, 4) for v in grasp["position"]],
                                         "orientation": [round(v, 5) for v in grasp["orientation"]]},
                               "target": specs[target].name if target is not None else None, **details})
+                if recorder is not None:
+                    name = specs[target].name if target is not None else None
+                    recorder.add(plan, grasp, chosen, outcome, attempt, False, name)
+                    if alternatives > 0:
+                        _try_alternatives(cell, before, ask, grasps, chosen + 1, alternatives, remaining, table,
+                                          lambda k, o, t: recorder.add(plan, grasps[k], k, o, attempt, True,
+                                                                       specs[t].name if t is not None else None))
                 break
             if outcome is None:
                 entry["outcome"] = "unreachable"

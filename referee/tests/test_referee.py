@@ -211,6 +211,74 @@ class OracleTest(unittest.TestCase):
         self.assertEqual(first, second)
 
 
+class PlannerErrorTest(unittest.TestCase):
+    def test_a_refused_frame_ends_the_episode_with_the_planners_reason(self):
+        class Refusing:
+            def plan(self, depth, pose, seed=0):
+                return {"grasps": [], "objects": [], "table": None, "server_ms": 0.0, "call_ms": 1.0, "views": {},
+                        "error": "INVALID_ARGUMENT: nothing in the workspace"}
+
+        record = protocol.run_episode(Refusing(), None, "isolated", "train", "random", 3100, 54)
+        self.assertEqual(record["end"], "no-grasp")
+        self.assertEqual([a["outcome"] for a in record["attempts"]], ["no-grasp"])
+        self.assertEqual(record["attempts"][0]["planner_error"], "INVALID_ARGUMENT: nothing in the workspace")
+
+
+class AttemptViewsTest(unittest.TestCase):
+    def test_tried_grasps_are_recorded_as_training_reads_them(self):
+        """Each tried grasp's view, pixel and outcome, and the alternatives
+        tried from the same state, written in the format `train --physics`
+        reads (training/mvgrasp_train/physics.py); recording changes
+        nothing of the episode."""
+        import sys  # noqa: PLC0415
+        import tempfile  # noqa: PLC0415
+
+        from mvgrasp_referee import attempt_views  # noqa: PLC0415
+
+        sys.path.insert(0, os.path.join(assets.ROOT, "training"))
+        from mvgrasp_train import physics  # noqa: PLC0415
+
+        class Labelled(planner.OraclePlanner):
+            """The oracle's grasps, each from a view of its own: object i's
+            view is all i, its peak pixel (i, 2 i)."""
+
+            def plan_truth(self, cell, remaining):
+                plan = super().plan_truth(cell, remaining)
+                for g, i in zip(plan["grasps"], remaining):
+                    g.update(object=i, pixel=(i, 2 * i))
+                plan["views"] = {(i, "top"): np.full((16, 16), i, np.float32) for i in remaining}
+                return plan
+
+        c = cell.build([], [])
+        b = bridge.Bridge(bridge_binary(), gripper.tcp_in_flange(c))
+        try:
+            args = (Labelled(), b, "packed", "train", "topdown", 7, 0)
+            plain = protocol.run_episode(*args)
+            own = attempt_views.Recorder()
+            recorded = protocol.run_episode(*args, recorder=own)
+            more = attempt_views.Recorder()
+            protocol.run_episode(*args, recorder=more, alternatives=1)
+        finally:
+            b.close()
+        self.assertEqual(plain, recorded)
+        tried = [a for a in plain["attempts"] if a["outcome"] not in ("no-grasp", "unreachable")]
+        self.assertGreater(len(tried), 1)
+        self.assertEqual([r["outcome"] for r in own.rows],
+                         ["ok" if a["outcome"] == "success" else a["outcome"] for a in tried])
+        self.assertFalse(any(r["alternative"] for r in own.rows))
+        self.assertEqual([r for r in more.rows if not r["alternative"]], own.rows)
+        self.assertGreater(sum(r["alternative"] for r in more.rows), 0)
+        with tempfile.TemporaryDirectory() as d:
+            n = more.write(d, "packed", "topdown", 7, 0, 16)
+            contract = {"input_size_px": 16, "pixel_size_m": 0.01, "normalisation": "cube-v1"}
+            attempt_views.write_manifest(d, {"model_version": "oracle"}, contract, n, {})
+            read = physics.load(d, failures=("",))
+        self.assertEqual(len(read), len(more.rows))
+        for view, (u, v), held, row in zip(read.views, read.pixels, read.held, read.records):
+            self.assertTrue(np.all(view == u) and v == 2 * u, (u, v))
+            self.assertEqual(held, 1.0 if row["outcome"] == "ok" else 0.0)
+
+
 class ObjectsTest(unittest.TestCase):
     def test_bodies_have_parts_mass_and_sizes_as_stated(self):
         rng = np.random.default_rng(0)

@@ -11,6 +11,11 @@ model contract. `train --physics DIR` then pulls the network's quality at
 those pixels (as the planner smooths it) towards the outcome: 1 held, 0
 failed.
 
+The MuJoCo referee writes the same (`scripts/referee.sh --pools train
+--attempt-views DIR`), its outcomes named as in its report ("empty",
+"dropped-carry", "slip-shake", ...): pass those as `failures`
+(`train --physics-failures`).
+
 Only the failures the network can be blamed for count as 0 by default: a
 slip during lift, an opening too small, and a pad or the palm meeting the
 grasped object itself on the approach. A collision with a neighbour or
