@@ -108,10 +108,10 @@ fn read_npy_f32(path: &std::path::Path) -> (Vec<usize>, Vec<f32>) {
 fn padded_batches_give_the_same_maps() {
     let repo = crate::fixture::repo();
     let mut model = settings(BackendKind::Onnx).model;
-    model.path = repo.join("models/mvgrasp.onnx");
-    let mut net = OnnxNet::load(&model, 8).expect("models/mvgrasp.onnx loads");
+    model.path = repo.join("models/mvgrasp-8.onnx");
+    let mut net = OnnxNet::load(&model, 8).expect("models/mvgrasp-8.onnx loads");
     let l = net.contract().input_size_px;
-    let (_, input) = read_npy_f32(&repo.join("models/golden/input.npy"));
+    let (_, input) = read_npy_f32(&repo.join("models/golden-mvgrasp-8/input.npy"));
     let mut batch = ViewBatch::new(l);
     for view in input.chunks_exact(l * l) {
         batch.push(view);

@@ -1,7 +1,7 @@
 """Exports a trained network to ONNX with the mvgrasp model contract.
 
-    python3 -m mvgrasp_train.export --run RUN_DIR --data DATASET --out models/mvgrasp.onnx \
-        --version mvgrasp-1 [--golden models/golden]
+    python3 -m mvgrasp_train.export --run RUN_DIR --data DATASET --out models/mvgrasp-9.onnx \
+        --version mvgrasp-9 [--golden models/golden-mvgrasp-9]
 
 BatchNorm is folded into the convolutions first (and the graph is checked to
 hold none); then every transposed convolution is rewritten in its sub-pixel

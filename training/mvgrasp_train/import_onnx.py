@@ -1,6 +1,6 @@
 """Reads an exported network back into PyTorch, to fine-tune it.
 
-    python3 -m mvgrasp_train.import_onnx --onnx ../models/mvgrasp.onnx --architecture narrow --out RUN_DIR
+    python3 -m mvgrasp_train.import_onnx --onnx ../models/mvgrasp-8.onnx --architecture narrow --out RUN_DIR
 
 The export folds each BatchNorm into its convolution and rewrites every
 transposed convolution in its sub-pixel form (export.py, model.subpixel).

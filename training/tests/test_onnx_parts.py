@@ -17,8 +17,9 @@ except ImportError:
     MISSING = True
 REASON = "needs onnx and onnxruntime (pip install onnx onnxruntime); scripts/test.sh installs them"
 
-MODEL = os.path.join(os.path.dirname(__file__), "..", "..", "models", "mvgrasp.onnx")
-LEVEL = os.path.join(os.path.dirname(__file__), "..", "..", "models", "mvgrasp-physics-labels.onnx")
+MODEL = os.path.join(os.path.dirname(__file__), "..", "..", "models", "mvgrasp-8.onnx")
+# Another network of the same contract (the paper's architecture), for compose.
+LEVEL = os.path.join(os.path.dirname(__file__), "..", "..", "models", "mvgrasp-paper.onnx")
 
 
 @unittest.skipIf(MISSING, REASON)
@@ -224,18 +225,18 @@ class QuantizeTest(unittest.TestCase):
         from mvgrasp_train import quantize
 
         cls.q = quantize
-        golden = np.load(os.path.join(os.path.dirname(LEVEL), "golden-physics-labels", "input.npy"))
+        golden = np.load(os.path.join(os.path.dirname(MODEL), "golden-mvgrasp-8", "input.npy"))
         cls.views = np.concatenate([golden, golden[:, :, ::-1], golden[:, :, :, ::-1]]).astype(np.float32)
         cls.tmp = tempfile.TemporaryDirectory()
         cls.out = os.path.join(cls.tmp.name, "int8.onnx")
-        quantize.quantize(LEVEL, cls.out, np.ascontiguousarray(cls.views))
+        quantize.quantize(MODEL, cls.out, np.ascontiguousarray(cls.views))
 
     @classmethod
     def tearDownClass(cls):
         cls.tmp.cleanup()
 
     def test_contract_kept_and_version_marked(self):
-        before = {e.key: e.value for e in onnx.load(LEVEL).metadata_props}
+        before = {e.key: e.value for e in onnx.load(MODEL).metadata_props}
         after = {e.key: e.value for e in onnx.load(self.out).metadata_props}
         self.assertEqual(set(before), set(after))
         for key, value in before.items():
@@ -256,7 +257,7 @@ class QuantizeTest(unittest.TestCase):
         self.assertEqual(self.q.head_and_after(model)[0], head.name)
 
     def test_maps_near_the_float_model(self):
-        gaps = self.q.differences(LEVEL, self.out, np.ascontiguousarray(self.views))
+        gaps = self.q.differences(MODEL, self.out, np.ascontiguousarray(self.views))
         self.assertEqual(set(gaps), {"quality", "cos2phi", "sin2phi", "width"})
         for name, gap in gaps.items():
             self.assertLess(gap["mean"], 0.03, name)

@@ -367,7 +367,7 @@ class Loss(unittest.TestCase):
 
 @unittest.skipIf(MISSING, REASON)
 class TeacherTarget(unittest.TestCase):
-    MODEL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "models", "mvgrasp.onnx")
+    MODEL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "models", "mvgrasp-8.onnx")
     CONTRACT = {"input_size_px": 72, "pixel_size_m": 0.0033333333, "width_scale_m": 0.2, "normalisation": "cube-v1"}
 
     def test_the_teacher_gives_the_file_s_maps_and_refuses_another_contract(self):
