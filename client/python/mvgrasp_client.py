@@ -122,14 +122,15 @@ def approach_cone(pb, axis, half_angle_deg):
 
 # Calls spread round robin over every address the target names; a unary call
 # that meets an unavailable replica (unreachable, gone mid-call, shutting
-# down) is sent once more, and round robin sends it to the next replica.
-# PlanGrasps and GetModelInfo are idempotent.
+# down) is sent up to twice more, and round robin sends it to the next
+# replicas: one replica killed and another stopping meet a call at most
+# twice. PlanGrasps and GetModelInfo are idempotent.
 SERVICE_CONFIG = json.dumps({
     "loadBalancingConfig": [{"round_robin": {}}],
     "methodConfig": [{
         "name": [{"service": "mvgrasp.v1.GraspPlanner", "method": m} for m in ("PlanGrasps", "GetModelInfo")],
         "retryPolicy": {
-            "maxAttempts": 2, "initialBackoff": "0.01s", "maxBackoff": "0.1s", "backoffMultiplier": 2,
+            "maxAttempts": 3, "initialBackoff": "0.01s", "maxBackoff": "0.1s", "backoffMultiplier": 2,
             "retryableStatusCodes": ["UNAVAILABLE"],
         },
     }],
@@ -221,8 +222,8 @@ def approach(q):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--server", default="127.0.0.1:50051",
-                        help="host:port, several separated by commas (round robin, one retry on another "
-                             "replica), or dns:///host:port")
+                        help="host:port, several separated by commas (round robin, up to two retries on other "
+                             "replicas), or dns:///host:port")
     parser.add_argument("--depth", required=True)
     parser.add_argument("--camera", required=True)
     parser.add_argument("--max-grasps", type=int, default=0)
