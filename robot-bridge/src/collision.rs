@@ -159,6 +159,8 @@ pub struct CollisionWorld {
     hand: Vec<(Isometry3<f64>, Cuboid)>,
     /// Whether the fingers are checked against detected objects.
     fingers_against_detected: bool,
+    /// Whether the palm (housing and linkage) is checked against detected objects.
+    palm_against_detected: bool,
 }
 
 /// An obstacle as parry tests it.
@@ -203,6 +205,7 @@ impl CollisionWorld {
             model,
             hand: Vec::new(),
             fingers_against_detected: true,
+            palm_against_detected: true,
         }
         .with_gripper(Isometry3::translation(0.0, 0.0, 0.233), 0.14)
     }
@@ -224,6 +227,16 @@ impl CollisionWorld {
     /// space the fingers go down into.
     pub fn with_fingers_against_detected(mut self, checked: bool) -> Self {
         self.fingers_against_detected = checked;
+        self
+    }
+
+    /// The same world with the palm (housing and linkage) checked against
+    /// detected objects or not (it is by default; the arm always is, and
+    /// the palm always against the cell). For the moves along the grasp's
+    /// approach line, where the planner has checked the whole hand (the
+    /// same parts: `mvgrasp_core::HandConfig`) against the points it saw.
+    pub fn with_palm_against_detected(mut self, checked: bool) -> Self {
+        self.palm_against_detected = checked;
         self
     }
 
@@ -276,12 +289,19 @@ impl CollisionWorld {
             let touch = |pose: &Pose, shape: &dyn parry3d::shape::Shape| {
                 intersection_test(pose, shape, &o.pose, &o.cuboid).map_or(true, |hit| hit.intersecting)
             };
-            let hand = if o.detected && !self.fingers_against_detected {
-                &boxes[..fingers_from]
+            let (palm, fingers) = boxes.split_at(fingers_from);
+            let palm: &[_] = if o.detected && !self.palm_against_detected {
+                &[]
             } else {
-                &boxes[..]
+                palm
             };
-            capsules.iter().any(|c| touch(&Pose::IDENTITY, c)) || hand.iter().any(|(p, b)| touch(p, b))
+            let fingers: &[_] = if o.detected && !self.fingers_against_detected {
+                &[]
+            } else {
+                fingers
+            };
+            capsules.iter().any(|c| touch(&Pose::IDENTITY, c))
+                || palm.iter().chain(fingers).any(|(p, b)| touch(p, b))
         };
         self.obstacles.iter().find(|o| hits(o)).map(|o| o.name.as_str())
     }

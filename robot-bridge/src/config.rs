@@ -86,6 +86,10 @@ pub struct PickSection {
     /// Check the fingers against the other detected objects on the approach
     /// and the lift too (`PickConfig::check_fingers_near_grasp`).
     pub check_fingers_near_grasp: bool,
+    /// Check the palm (housing and linkage) against the other detected
+    /// objects on the approach and the lift too
+    /// (`PickConfig::check_palm_near_grasp`).
+    pub check_palm_near_grasp: bool,
 }
 
 /// Where grasps come from.
@@ -182,6 +186,7 @@ impl Default for BridgeConfig {
                 },
                 max_grasps: 10,
                 check_fingers_near_grasp: pick.check_fingers_near_grasp,
+                check_palm_near_grasp: pick.check_palm_near_grasp,
             },
             planner: PlannerSection {
                 endpoint: None,
@@ -307,6 +312,7 @@ impl BridgeConfig {
             tool_accel: self.robot.tool_accel,
             obstacles: vec![self.basket()],
             check_fingers_near_grasp: self.pick.check_fingers_near_grasp,
+            check_palm_near_grasp: self.pick.check_palm_near_grasp,
             ..PickConfig::default()
         })
     }

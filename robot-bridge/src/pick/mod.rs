@@ -12,9 +12,10 @@
 //! collisions of the arm (capsules) with the cell's obstacles and the other
 //! detected objects; joint moves whose straight line collides are planned
 //! around with RRT-Connect (`collision`). On the approach and the lift the
-//! fingers are checked against the cell only, unless
-//! [`PickConfig::check_fingers_near_grasp`] asks: the planner has checked
-//! them against the points it saw, swept back along the approach. Not
+//! hand (fingers and palm) is checked against the cell only, unless
+//! [`PickConfig::check_fingers_near_grasp`] or
+//! [`PickConfig::check_palm_near_grasp`] asks: the planner has checked the
+//! same parts against the points it saw, swept back along the approach. Not
 //! modelled: the object held between the fingers while it is carried.
 
 use std::f64::consts::PI;
@@ -89,6 +90,12 @@ pub struct PickConfig {
     /// pile covers the free space beside the grasped object; on the
     /// referee's train pool, piles: docs/experiments/2026-11-28-bridge-fingers.md).
     pub check_fingers_near_grasp: bool,
+    /// Check the palm (housing and linkage) against the other detected
+    /// objects' boxes on the approach and the lift too (off by default: the
+    /// planner's hand check vets the same parts against the points it saw,
+    /// swept 10 cm back along the approach; on the referee's test pools
+    /// with the approach cone: docs/experiments/2026-11-28-bridge-palm.md).
+    pub check_palm_near_grasp: bool,
     /// RRT-Connect seed (paths are deterministic per seed).
     pub rrt_seed: u64,
     /// RRT-Connect iterations before giving up.
@@ -117,6 +124,7 @@ impl Default for PickConfig {
             obstacles: Vec::new(),
             arm_model: ArmModel::default(),
             check_fingers_near_grasp: false,
+            check_palm_near_grasp: false,
             rrt_seed: 1,
             rrt_iterations: 3000,
         }
@@ -200,7 +208,8 @@ pub fn plan_pick(
         );
         let near = world
             .clone()
-            .with_fingers_against_detected(config.check_fingers_near_grasp);
+            .with_fingers_against_detected(config.check_fingers_near_grasp)
+            .with_palm_against_detected(config.check_palm_near_grasp);
         match plan_one(arm, config, [&world, &near], grasp, current) {
             Ok(steps) => {
                 return Ok(PickPlan {
@@ -653,6 +662,50 @@ pub(crate) mod tests {
         assert!(plan_pick(&arm, &config, &[grasp], &beside, &HOME).is_ok());
         let err = plan_pick(&arm, &config, &[grasp], &[target, neighbour(-0.39)], &HOME).unwrap_err();
         assert!(err.to_string().contains("neighbour"), "{err}");
+    }
+
+    #[test]
+    fn near_the_grasp_the_palm_is_checked_against_the_cell_only_unless_asked() {
+        let arm = Ur5e::default();
+        let mut grasp = top_grasp(0.1, -0.45, 0.05);
+        grasp.object = Some(0);
+        grasp.width_m = 0.02;
+        let target = BoxObstacle {
+            name: "target".to_owned(),
+            world_from_box: Isometry3::translation(0.1, -0.45, 0.02),
+            half_extents_m: Vector3::new(0.008, 0.02, 0.02),
+        };
+        // A thin 20 cm tall box 7.0-7.9 cm from the grasp along the closing
+        // direction: outside the fingers at a 4 cm opening (6.8 cm out,
+        // margin included), inside the linkage (8 cm out, from 9.7 cm above
+        // the fingertips), below the flange.
+        let beside = BoxObstacle {
+            name: "neighbour".to_owned(),
+            world_from_box: Isometry3::translation(0.1745, -0.45, 0.1),
+            half_extents_m: Vector3::new(0.0045, 0.02, 0.1),
+        };
+        let scene = [target, beside];
+        let trusting = PickConfig {
+            obstacles: vec![table()],
+            ..PickConfig::default()
+        };
+        assert!(!trusting.check_palm_near_grasp, "the default");
+        assert!(plan_pick(&arm, &trusting, &[grasp], &scene, &HOME).is_ok());
+        let checking = PickConfig {
+            check_palm_near_grasp: true,
+            ..trusting.clone()
+        };
+        let err = plan_pick(&arm, &checking, &[grasp], &scene, &HOME).unwrap_err();
+        assert!(
+            err.to_string().contains("approach") && err.to_string().contains("neighbour"),
+            "{err}"
+        );
+        // The fingers checked near the grasp too: they clear it.
+        let fingers = PickConfig {
+            check_fingers_near_grasp: true,
+            ..trusting
+        };
+        assert!(plan_pick(&arm, &fingers, &[grasp], &scene, &HOME).is_ok());
     }
 
     #[test]
