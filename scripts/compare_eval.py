@@ -25,7 +25,7 @@ The first run is the reference; the others show their difference to it.
 
 pools the paired episodes of several seed sets (A runs of one model, B of
 the other) into one such comparison, per scenario and in all: how a
-default change is judged (models/HISTORY.md, "The default since
+default change is judged (docs/experiments/2026-11-26-default-since-11-26.md, "The default since
 2026-11-26"). Standard library only (the sign test comes from the training
 package's `mvgrasp_train/stats.py`, itself standard library).
 """

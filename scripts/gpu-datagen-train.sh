@@ -18,15 +18,15 @@
 # $OUT/datagen.tsv: that is the throughput figure of issue 3.
 # $SCENARIOS (default isolated,packed,pile,clutter) and $DATAGEN_ARGS (more
 # `sim datagen` options, e.g. "--stride-px 1 --angles 16": labels at every
-# pixel and 16 angles, about 10x the labelling time; HISTORY.md, "Dense
+# pixel and 16 angles, about 10x the labelling time; docs/experiments/2026-11-24-dense-labels.md, "Dense
 # labels") change what each chunk holds.
 # `train MINUTES ARCH...`: one training run per architecture (default:
 # paper), all at once on the one GPU, cosine schedule over MINUTES, on every
 # chunk in $DATA, holding out the bowl family, the error at positive pixels
 # weighted $POSITIVE_WEIGHT times (default 10; 1 is the paper's plain MSE;
-# models/HISTORY.md has the measurement), plus $RANK_WEIGHT times the rank loss
+# docs/experiments/ has the measurement), plus $RANK_WEIGHT times the rank loss
 # (default 0: off; 0.01 lifted view accuracy 3 points on this CPU but
-# cleared fewer objects in physics, models/HISTORY.md), under $SYMMETRIES
+# cleared fewer objects in physics, docs/experiments/), under $SYMMETRIES
 # (default gravity: front and side views only mirrored left-right, so the
 # table stays below; all: the 8 symmetries of the square for every view, as
 # stage 1 of the model card was trained). ARCH: paper, narrow,

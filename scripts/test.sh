@@ -23,6 +23,8 @@ done
 
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
+echo "== docs: every relative Markdown link and every docs/experiments file named exists"
+python3 scripts/check_links.py
 echo "== cargo clippy"
 cargo clippy --workspace --all-targets -- -D warnings
 echo "== layering: the sim library without its service feature builds, and depends on no gRPC crate"

@@ -42,7 +42,7 @@ passes grasps far enough off a box's faces to slip. At 7.5 degrees the
 objects line on 8-angle labels ranked ten models more like one physics
 seed (Spearman +0.61 against +0.18); on 16-angle labels the limit changes
 nothing, as every angle is within 5.6 degrees of a labelled one
-(models/HISTORY.md, "Where the slips are").
+(docs/experiments/2026-11-25-where-the-slips-are.md, "Where the slips are").
 
 On frames that `sim eval --label-frames` labelled, each view's `step` is the
 attempts made in its episode before it; `--min-step 1` keeps the frames

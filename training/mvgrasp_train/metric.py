@@ -12,7 +12,7 @@ clears a quality threshold.
 
 The 30 degrees are the paper's. `angle_limit_deg` makes it stricter: on
 boxes, grasps 20 degrees or more off the faces pass at 30 yet slip half
-the time in physics (models/HISTORY.md, "Where the slips are").
+the time in physics (docs/experiments/2026-11-25-where-the-slips-are.md, "Where the slips are").
 """
 
 import numpy as np

@@ -7,7 +7,7 @@ The runs must share an architecture, and should share a starting point
 a network. Floating-point tensors are averaged; integer buffers (BatchNorm's
 step counts) are taken from the first run. RUN_DIR/model.pt is what `export
 --run RUN_DIR` reads; RUN_DIR/config.json names the runs. Measured once
-(models/HISTORY.md, "A fifth physics round"): the mean of qc and qe, two
+(docs/experiments/2026-11-27-fifth-physics-round.md, "A fifth physics round"): the mean of qc and qe, two
 fine-tunes of p2 with the physics term at 0.3 and none, scored views
 between the two.
 """

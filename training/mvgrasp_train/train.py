@@ -137,7 +137,7 @@ def rank_loss(scores, target_quality):
     The paper's accuracy takes the argmax of the quality map, and only the
     few percent of pixels painted positive can win it; this term scores
     that directly, where the MSE mostly learns "quality 0 almost
-    everywhere" (models/HISTORY.md, "Where the missing accuracy is").
+    everywhere" (docs/experiments/2026-11-24-missing-accuracy-rank-loss-skips.md, "Where the missing accuracy is").
     """
     logits = scores.flatten(1)
     positive = target_quality.flatten(1) > 0

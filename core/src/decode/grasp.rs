@@ -33,7 +33,7 @@ pub struct DecodeConfig {
     pub surface_radius_m: f32,
     /// How far the fingertips go past that surface (m). 3 cm of the 2F-140's
     /// 4 cm pads: in `sim eval` 1.5 cm slipped in 39 of 139 attempts, 3 cm in
-    /// 12 of 130 (models/HISTORY.md); on the referee's train pool 4 cm was
+    /// 12 of 130 (docs/experiments/); on the referee's train pool 4 cm was
     /// level (docs/experiments/2026-11-28-finger-length.md).
     pub insertion_m: f64,
     /// Smallest distance kept between a pad and the table (m).

@@ -42,7 +42,7 @@ pub struct ClusterConfig {
     /// the default; a point cloud input is never split). Off because real
     /// objects have creases of their own: on the referee's train pool the
     /// split cut them apart and cleared 16 of 192 objects fewer
-    /// (docs/experiments/2026-11-28-segmentation.md).
+    /// (docs/experiments/2026-11-28-segmentation-and-hand.md).
     pub crease: Option<CreaseConfig>,
 }
 

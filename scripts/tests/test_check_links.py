@@ -1,0 +1,54 @@
+"""scripts/check_links.py: broken relative links and missing experiment files are found."""
+
+import contextlib
+import io
+import os
+import pathlib
+import subprocess
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+import check_links  # noqa: E402
+
+
+class CheckLinksTest(unittest.TestCase):
+    def repo(self, files):
+        root = pathlib.Path(tempfile.mkdtemp())
+        for name, text in files.items():
+            (root / name).parent.mkdir(parents=True, exist_ok=True)
+            (root / name).write_text(text)
+        subprocess.run(["git", "init", "-q"], cwd=root, check=True)
+        subprocess.run(["git", "add", "-A"], cwd=root, check=True)
+        return root
+
+    def run_on(self, root):
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            code = check_links.main(root)
+        return code, out.getvalue()
+
+    def test_links_that_resolve_pass(self):
+        root = self.repo({
+            "README.md": "[a](docs/a.md#part) [web](https://example.org) [top](#title)\n",
+            "docs/a.md": "[back](../README.md) docs/experiments/x.md\n",
+            "docs/experiments/x.md": "x\n",
+        })
+        code, out = self.run_on(root)
+        self.assertEqual(code, 0, out)
+
+    def test_a_missing_link_target_and_a_missing_experiment_are_reported(self):
+        root = self.repo({
+            "README.md": "[gone](docs/gone.md)\n",
+            "src/lib.rs": "// see docs/experiments/2026-01-01-missing.md\n",
+        })
+        code, out = self.run_on(root)
+        self.assertEqual(code, 1)
+        self.assertIn("README.md: link to docs/gone.md", out)
+        self.assertIn("src/lib.rs: names docs/experiments/2026-01-01-missing.md", out)
+        self.assertIn("2 broken link(s)", out)
+
+
+if __name__ == "__main__":
+    unittest.main()
