@@ -15,8 +15,8 @@
 //!   object index, `instance` (unique per object instance, the key of the
 //!   train / evaluation split), family, view axis, candidates, positives,
 //!   and `refused`: the other candidates counted by why the labeller
-//!   refused them (`targets::LabelledView::refused`; added 2026-11-25, so
-//!   older shards lack it). Views of mid-episode frames (`sim eval
+//!   refused them (`targets::LabelledView::refused`; shards written before
+//!   it existed lack it). Views of mid-episode frames (`sim eval
 //!   --label-frames`, [`FrameLabeller`]) also carry `step`, the attempts
 //!   made in the episode before that frame, and their `instance` names the
 //!   frame (`scenario-seed.step:object`: `sim eval` runs every scenario from
@@ -44,22 +44,8 @@ use crate::targets::{LabelledView, TargetConfig, label_frame};
 pub const FORMAT_VERSION: u32 = 2;
 
 /// The data version of labels made now (sim-6: `grasp.rs` as it is; older
-/// versions are in models/HISTORY.md).
+/// versions are in docs/experiments/).
 pub const DATA_VERSION: &str = "sim-6";
-
-/// The data version of labels made with `targets`: [`DATA_VERSION`], with
-/// `+pad-Nmm` where the pads give (`TargetConfig::pad_compliance_m`).
-pub fn data_version_of(targets: &TargetConfig) -> String {
-    if targets.pad_compliance_m > 0.0 {
-        // In tenths of a millimetre, so that 0.1 mm reads "0.1", not f32's "0.099999994".
-        format!(
-            "{DATA_VERSION}+pad-{}mm",
-            (targets.pad_compliance_m * 1e4).round() / 10.0
-        )
-    } else {
-        DATA_VERSION.to_owned()
-    }
-}
 
 /// What to generate.
 #[derive(Debug, Clone)]
@@ -349,11 +335,6 @@ fn write_manifest(
     });
     if let Some(frames_from) = frames_from {
         manifest["frames_from"] = frames_from;
-    }
-    // Only where the pads give: sim-6 manifests stay as they were, so
-    // folders made before and after this key can still be trained on together.
-    if gripper.pad_compliance_m > 0.0 {
-        manifest["gripper"]["pad_compliance_m"] = serde_json::json!(gripper.pad_compliance_m);
     }
     let path = out.join("manifest.json");
     let text = serde_json::to_string_pretty(&manifest).map_err(|e| file_error(&path, e))?;

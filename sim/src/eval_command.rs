@@ -9,7 +9,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use mvgrasp_core::{GraspNet, ModelContract, Planner, PlannerConfig};
 use mvgrasp_server::settings::ModelSettings;
 use mvgrasp_sim::camera::render;
-use mvgrasp_sim::dataset::{DatagenConfig, FrameLabeller, data_version_of};
+use mvgrasp_sim::dataset::{DATA_VERSION, DatagenConfig, FrameLabeller};
 use mvgrasp_sim::eval::{
     Episode, EpisodeConfig, Failure, GraspSource, InProcess, JudgeTally, Remote, Setting, Summary,
     ViewKeeping, collision_list, episode_record, episode_scene, grasp_outcome, judge_table, label_table,
@@ -180,11 +180,6 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
         anyhow::bail!("--attempt-views needs the in-process planner (not --server)");
     }
     let command: Vec<String> = std::env::args().collect();
-    // The frames are labelled with the gripper the tried grasps are.
-    let labels = TargetConfig {
-        pad_compliance_m: config.gripper.pad_compliance_m,
-        ..TargetConfig::default()
-    };
     let labeller = match label_frames {
         None => None,
         Some(LabelFrames { out: dir, every }) => Some(
@@ -197,8 +192,8 @@ pub fn eval_command(run: &EvalRun) -> anyhow::Result<()> {
                     scenarios: scenarios.clone(),
                     catalog: config.catalog.clone(),
                     scenes_per_shard: 1,
-                    data_version: data_version_of(&labels),
-                    targets: labels,
+                    data_version: DATA_VERSION.to_owned(),
+                    targets: TargetConfig::default(),
                     noise: config.noise,
                     label_salt: 0,
                 },

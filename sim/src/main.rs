@@ -99,15 +99,9 @@ enum Command {
         /// Worker threads (default: one per core).
         #[arg(long)]
         threads: Option<usize>,
-        /// How far the labels' pads give (mm): each pad's contact normal is
-        /// the mean over the surface within this distance of its first
-        /// touch (`GripperModel::pad_compliance_m`; 0: the first touch's
-        /// own normal, data sim-6).
-        #[arg(long, default_value_t = 0.0)]
-        pad_compliance_mm: f32,
         /// Data version recorded in the manifest (default: sim-6, the labels
-        /// of `grasp.rs` as they are now, with `+pad-Nmm` for
-        /// --pad-compliance-mm; older versions are in models/HISTORY.md).
+        /// of `grasp.rs` as they are now; older versions are in
+        /// docs/experiments/).
         #[arg(long)]
         data_version: Option<String>,
     },
@@ -203,11 +197,6 @@ enum Command {
         /// (rows with `alternative` set to their rank).
         #[arg(long, default_value_t = 0, requires = "attempt_views")]
         attempt_alternatives: usize,
-        /// How far the pads give (mm) in the analytic labels of the tried
-        /// grasps and of --label-frames (as `sim datagen
-        /// --pad-compliance-mm`; physics does not read it).
-        #[arg(long, default_value_t = 0.0)]
-        pad_compliance_mm: f32,
     },
     /// Render one scene: depth.png + camera.json (what `mvgrasp plan` reads),
     /// labels.png and preview.png.
@@ -309,14 +298,8 @@ fn main() -> anyhow::Result<()> {
             judge,
             attempt_views,
             attempt_alternatives,
-            pad_compliance_mm,
         } => {
             use_threads(threads)?;
-            let labels = TargetConfig {
-                pad_compliance_m: pad_compliance_mm / 1000.0,
-                ..TargetConfig::default()
-            };
-            labels.check()?;
             let scenarios = scenarios_of(&scenarios)?;
             let settings = settings
                 .iter()
@@ -330,7 +313,6 @@ fn main() -> anyhow::Result<()> {
             };
             let config = EpisodeConfig {
                 catalog: objects.catalog()?,
-                gripper: labels.gripper(),
                 ..EpisodeConfig::default()
             };
             let planning = match server {
@@ -403,7 +385,6 @@ fn main() -> anyhow::Result<()> {
             without_neighbours,
             label_salt,
             threads,
-            pad_compliance_mm,
             data_version,
         } => {
             use_threads(threads)?;
@@ -413,11 +394,10 @@ fn main() -> anyhow::Result<()> {
                 angles,
                 opening: candidate_opening,
                 neighbours: !without_neighbours,
-                pad_compliance_m: pad_compliance_mm / 1000.0,
                 ..TargetConfig::default()
             };
             let data_version =
-                data_version.unwrap_or_else(|| mvgrasp_sim::dataset::data_version_of(&targets));
+                data_version.unwrap_or_else(|| mvgrasp_sim::dataset::DATA_VERSION.to_owned());
             let contract = ModelContract {
                 input_size_px,
                 pixel_size_m: pixel_size_mm / 1000.0,

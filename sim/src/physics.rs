@@ -11,7 +11,8 @@
 //! judges geometry and friction, not force limits. Every hand motion
 //! starts and ends at rest and speeds up and slows down at a robot's pace
 //! (1 m/s^2): a kinematic hand that jumps to speed in one 1/240 s step
-//! shakes objects loose that a real arm would carry (2026-11-24).
+//! shakes objects loose that a real arm would carry
+//! (docs/experiments/2026-11-24-sim-eval-loop.md).
 
 use nalgebra::Isometry3;
 use rapier3d::prelude::{
@@ -41,13 +42,11 @@ pub struct TrialConfig {
     pub lift_m: f32,
     /// See `lift_m`.
     pub lift_speed: f32,
-    /// The lift speeds up and slows down at this (m/s^2). Until 2026-11-24
-    /// it started at `lift_speed` in one step (24 m/s^2 at 240 Hz).
+    /// The lift speeds up and slows down at this (m/s^2).
     pub lift_accel: f32,
     /// Shake amplitude (m) and frequency (Hz), across the closing direction,
     /// for `shake_s`: `shake_m (1 - cos)`, from rest and back, 2 x `shake_m`
-    /// peak to peak (until 2026-11-24 `shake_m sin`, which started at full
-    /// speed in one step).
+    /// peak to peak.
     pub shake_m: f32,
     /// See `shake_m`.
     pub shake_hz: f32,
@@ -71,9 +70,7 @@ pub struct Basket {
     /// Carry speed (m/s).
     pub speed: f32,
     /// Carry acceleration and deceleration (m/s^2), each leg from rest to
-    /// rest. Until 2026-11-24 the hand jumped to `speed` in one step
-    /// (120 m/s^2 at 240 Hz), which shook about half of the objects that
-    /// slipped out of the grip at the start of the carry.
+    /// rest.
     pub accel: f32,
     /// How long the object may fall and settle after the release (s).
     pub release_s: f32,

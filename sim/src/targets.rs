@@ -55,13 +55,7 @@ pub struct TargetConfig {
     /// labelled as if it stood alone, where it is; the view shows only the
     /// object, so these are the labels its view can tell).
     pub neighbours: bool,
-    /// How far the labels' pads give (m; `GripperModel::pad_compliance_m`,
-    /// 0 for the data versions up to sim-6).
-    pub pad_compliance_m: f32,
 }
-
-/// The most pad compliance the labels take (m): half a pad's depth.
-pub const MAX_PAD_COMPLIANCE_M: f32 = 0.02;
 
 impl Default for TargetConfig {
     fn default() -> Self {
@@ -73,7 +67,6 @@ impl Default for TargetConfig {
             paint_radius_px: 1.6,
             anneal_steps: 6,
             neighbours: true,
-            pad_compliance_m: 0.0,
         }
     }
 }
@@ -158,26 +151,12 @@ impl TargetConfig {
                 ),
             });
         }
-        if !(0.0..=MAX_PAD_COMPLIANCE_M).contains(&self.pad_compliance_m) {
-            return Err(Error::Invalid {
-                field: "pad compliance",
-                reason: format!(
-                    "{} mm: must be 0 to {} mm",
-                    self.pad_compliance_m * 1000.0,
-                    MAX_PAD_COMPLIANCE_M * 1000.0
-                ),
-            });
-        }
         Ok(())
     }
 
-    /// The gripper these labels judge grasps with: the Robotiq 2F-140 with
-    /// this pad compliance.
+    /// The gripper these labels judge grasps with: the Robotiq 2F-140.
     pub fn gripper(&self) -> GripperModel {
-        GripperModel {
-            pad_compliance_m: self.pad_compliance_m,
-            ..GripperModel::robotiq_2f_140()
-        }
+        GripperModel::robotiq_2f_140()
     }
 }
 

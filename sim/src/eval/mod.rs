@@ -4,9 +4,8 @@
 //! An episode: a scene and one camera, both fixed by the seed; the camera is
 //! the first of up to [`CAMERA_DRAWS`] random ones whose field of view holds
 //! every object's bounding box (else the draw that cuts fewest), as a
-//! camera is mounted to see the workspace. (Before 2026-11-24 it was the
-//! first draw: on the tuning seeds 15 of 277 clutter objects were never in
-//! view and 60 were cut by the image border.) Until the
+//! camera is mounted to see the workspace (the first draw alone left
+//! objects out of view or cut by the border). Until the
 //! table is clear, three attempts in a row fail, no grasp clears tau, or
 //! `2 n + 3` attempts are spent (n objects): render a noisy frame, plan,
 //! take the best grasp, and try it:
@@ -35,10 +34,8 @@
 //! the executor takes the best of the planner's ranked grasps that is not
 //! one it already tried and failed ([`same_grasp`]), as a robot would,
 //! rather than failing the same grasp three times over; a grasp that
-//! slipped but moved its object plans elsewhere anyway. (Before 2026-11-24
-//! it took the best grasp every time; until 4015fe6 it forgot the
-//! failed grasps after every physics trial, so one that slipped without
-//! moving anything was tried again.)
+//! slipped but moved its object plans elsewhere anyway. Why each rule:
+//! docs/experiments/2026-11-24-sim-eval-loop.md.
 //!
 //! Files: `setting` (what a run asks of the planner), `episode` (what an
 //! episode is and records), `source` and `remote` (where grasps come from:

@@ -388,56 +388,6 @@ fn datagen_refuses_a_zero_candidate_stride_or_no_angles_and_denser_candidates_fi
 }
 
 #[test]
-fn datagen_refuses_a_pad_compliance_outside_0_to_20_mm_and_records_it() {
-    use mvgrasp_sim::Error;
-    use mvgrasp_sim::dataset::{DATA_VERSION, DatagenConfig, data_version_of, generate};
-    use mvgrasp_sim::targets::TargetConfig;
-
-    let out = std::env::temp_dir().join(format!("mvgrasp-datagen-pad-{}", std::process::id()));
-    let contract = MomentsNet::default().contract().clone();
-    let config = |pad_compliance_m| DatagenConfig {
-        targets: TargetConfig {
-            pad_compliance_m,
-            ..TargetConfig::default()
-        },
-        ..small_datagen(1, 41, Scenario::Isolated, &[Family::Mug])
-    };
-    for bad in [-0.001, 0.025, f32::NAN] {
-        let _ = std::fs::remove_dir_all(&out);
-        match generate(&out, &contract, &config(bad), false) {
-            Err(Error::Invalid {
-                field: "pad compliance",
-                ..
-            }) => {}
-            other => panic!("{bad}: {other:?}"),
-        }
-        assert!(!out.exists(), "nothing written for a refused compliance");
-    }
-    assert_eq!(data_version_of(&TargetConfig::default()), DATA_VERSION);
-    let pad = TargetConfig {
-        pad_compliance_m: 0.003,
-        ..TargetConfig::default()
-    };
-    assert_eq!(data_version_of(&pad), format!("{DATA_VERSION}+pad-3mm"));
-    let tenth = TargetConfig {
-        pad_compliance_m: 0.0001,
-        ..TargetConfig::default()
-    };
-    assert_eq!(data_version_of(&tenth), format!("{DATA_VERSION}+pad-0.1mm"));
-    let manifest = datagen_into(&out, &config(0.003));
-    let recorded = manifest["gripper"]["pad_compliance_m"].as_f64().unwrap();
-    assert!((recorded - 0.003).abs() < 1e-6, "{recorded}");
-    // Without compliance the manifest's gripper is sim-6's, key for key.
-    let manifest = datagen_into(&out, &config(0.0));
-    assert!(
-        manifest["gripper"].get("pad_compliance_m").is_none(),
-        "{}",
-        manifest["gripper"]
-    );
-    let _ = std::fs::remove_dir_all(&out);
-}
-
-#[test]
 fn a_label_salt_redraws_noise_and_annealing_for_the_same_scenes_and_cameras() {
     use mvgrasp_sim::dataset::DatagenConfig;
 
