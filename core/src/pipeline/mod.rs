@@ -1,0 +1,512 @@
+//! The whole method, split where a server batches across requests:
+//! [`Planner::prepare`] (frame -> views to infer), the network, and
+//! [`Planner::finish`] (maps -> ranked grasps). [`Planner::plan`] chains them.
+//!
+//! Files: `options` (what a request asks, how the planner is configured),
+//! `plan` (the answer), `prepared` (a frame between the two halves, the
+//! view cascade's order), `vet` (the hand check of the ranked grasps);
+//! the planner's stages are here.
+
+mod options;
+mod plan;
+mod prepared;
+mod vet;
+
+pub use options::{ApproachCone, PlanOptions, PlannerConfig, SceneInput};
+use plan::RankedLast;
+pub use plan::{
+    DebugView, DetectedObject, ObjectRefusals, Plan, Refusals, Segmentation, StageTimings, ViewReport,
+};
+pub use prepared::{Finished, Prepared};
+use prepared::{PreparedObject, Vetted, cascade_order};
+pub use vet::approach_of;
+use vet::{Vetting, vet};
+
+use std::time::{Duration, Instant};
+
+use nalgebra::{Point3, Vector3};
+
+use crate::decode::{
+    Grasp, Obstacle, RankConfig, ViewPlacement, decode_view, lever_arm_m, rank_grasps_scored,
+};
+use crate::error::{Error, Result};
+use crate::infer::{GraspMaps, GraspNet, ModelContract, NORMALISATION_CUBE_V1, ViewBatch};
+use crate::object::{ObjectFrame, object_frame};
+use crate::segment::{ImagePoints, euclidean_clusters, fit_table, fixed_order, split_at_creases};
+use crate::select::select_views;
+use crate::sensor::{
+    BlockMask, FieldOfView, SensorInput, random_world_points, world_points, world_points_above,
+};
+use crate::view::OrthoView;
+
+/// Below this many usable random readings the table is fitted on all of them.
+const MIN_RANDOM_POINTS_TO_FIT: usize = 256;
+
+/// The pipeline, configured once for a model contract.
+#[derive(Debug, Clone)]
+pub struct Planner {
+    config: PlannerConfig,
+    contract: ModelContract,
+}
+
+impl Planner {
+    /// A planner for networks that speak `contract`.
+    pub fn new(config: PlannerConfig, contract: ModelContract) -> Result<Self> {
+        if contract.normalisation != NORMALISATION_CUBE_V1 {
+            return Err(Error::Contract {
+                key: crate::infer::keys::NORMALISATION.into(),
+                reason: format!("{:?} is not supported", contract.normalisation),
+            });
+        }
+        if config.views.is_empty() {
+            return Err(Error::invalid("views", "at least one view axis is needed"));
+        }
+        Ok(Self { config, contract })
+    }
+
+    /// The contract views are rendered for.
+    pub fn contract(&self) -> &ModelContract {
+        &self.contract
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &PlannerConfig {
+        &self.config
+    }
+
+    /// Frame -> table -> the object points -> clusters (split at creases
+    /// for a depth image): the stages before the object frames.
+    pub fn segment(&self, scene: &SceneInput<'_>) -> Result<Segmentation> {
+        self.segment_timed(scene, &mut StageTimings::default())
+    }
+
+    fn segment_timed(&self, scene: &SceneInput<'_>, timings: &mut StageTimings) -> Result<Segmentation> {
+        let mut clock = Stopwatch::start();
+
+        // The table is fitted on random readings; a grid pass then marks the
+        // blocks near what stands on it, and one full-resolution pass over
+        // those blocks keeps the object points: the table is never converted.
+        let (sensor, pose, workspace) = (&scene.sensor, &scene.world_from_camera, &scene.workspace);
+        let table_config = &self.config.table;
+        let mut sample = random_world_points(
+            sensor,
+            pose,
+            workspace,
+            table_config.sample_points,
+            table_config.seed,
+        )?;
+        if sample.points.len() < MIN_RANDOM_POINTS_TO_FIT {
+            // Few usable readings: look at all of them (this also names the
+            // cause when there is none).
+            sample = world_points(sensor, pose, workspace)?;
+        }
+        clock.lap(&mut timings.sensor);
+        let table = fit_table(&sample.points, table_config)?;
+        clock.lap(&mut timings.table);
+        let half_space = table.above(table_config.object_min_height_m);
+        let near = match sensor {
+            SensorInput::Depth(frame) if table_config.mask_stride > 1 => Some(BlockMask::from_frame(
+                frame,
+                pose,
+                workspace,
+                &half_space,
+                table_config.mask_stride,
+            )?),
+            _ => None,
+        };
+        let above = world_points_above(sensor, pose, workspace, &half_space, near.as_ref())?;
+        clock.lap(&mut timings.sensor_objects);
+
+        let cluster_config = &self.config.cluster;
+        let mut clusters = euclidean_clusters(&above.points, cluster_config);
+        if let (Some(crease), SensorInput::Depth(frame)) = (&cluster_config.crease, sensor) {
+            let rotation = pose.rotation;
+            let axis = rotation * Vector3::z();
+            let t = pose.translation.vector;
+            let image = ImagePoints {
+                points: &above.points,
+                pixels: &above.pixels,
+                width: frame.width as usize,
+                origin: [t.x as f32, t.y as f32, t.z as f32],
+                axis: [axis.x as f32, axis.y as f32, axis.z as f32],
+                focal_px: frame.intrinsics.fx as f32,
+            };
+            let split;
+            (clusters, split) = split_at_creases(&image, clusters, cluster_config.tolerance_m, crease);
+            if split {
+                clusters = fixed_order(&above.points, clusters, cluster_config.max_objects);
+            }
+        }
+        clock.lap(&mut timings.cluster);
+        Ok(Segmentation {
+            table,
+            points: above.points,
+            pixels: above.pixels,
+            clusters,
+        })
+    }
+
+    /// Frame -> objects -> frames -> views -> entropy -> the batch to infer.
+    pub fn prepare(&self, scene: &SceneInput<'_>, options: &PlanOptions) -> Result<Prepared> {
+        options.validate()?;
+        let mut timings = StageTimings::default();
+        let Segmentation {
+            table,
+            points: above,
+            clusters,
+            ..
+        } = self.segment_timed(scene, &mut timings)?;
+        let mut clock = Stopwatch::start();
+
+        let camera = Point3::from(scene.world_from_camera.translation.vector);
+        let framed: Vec<(ObjectFrame, Vec<[f32; 3]>)> = clusters
+            .iter()
+            .map(|c| object_frame(&above, c, &camera))
+            .collect();
+        clock.lap(&mut timings.frames);
+
+        let (l, s) = (self.contract.input_size_px, self.contract.pixel_size_m);
+        let rendered: Vec<Vec<OrthoView>> = framed
+            .iter()
+            .map(|(frame, local)| {
+                let camera_in_object = frame.world_from_object.inverse_transform_point(&camera);
+                let plus_y = camera_in_object.y >= 0.0;
+                let extent = frame.extent_f32();
+                self.config
+                    .views
+                    .iter()
+                    .map(|&axis| OrthoView::render_within(axis, plus_y, local, extent, l, s))
+                    .collect()
+            })
+            .collect();
+        clock.lap(&mut timings.views);
+
+        let mut batch = ViewBatch::new(l);
+        let mut inferred = Vec::new();
+        let mut untried = Vec::with_capacity(rendered.len());
+        let mut objects = Vec::with_capacity(rendered.len());
+        for (index, ((frame, points), views)) in framed.into_iter().zip(rendered).enumerate() {
+            let id = index as u32;
+            let entropies: Vec<f64> = views.iter().map(|v| v.entropy).collect();
+            let chosen = select_views(options.view_policy, &self.config.views, &entropies, id);
+            for &v in &chosen {
+                batch.push(&views[v].image);
+                inferred.push((index, v));
+            }
+            untried.push(cascade_order(&entropies, &chosen));
+            let reports = views
+                .iter()
+                .zip(&entropies)
+                .enumerate()
+                .map(|(v, (view, &entropy))| ViewReport {
+                    axis: view.axis,
+                    entropy,
+                    inferred: chosen.contains(&v),
+                })
+                .collect();
+            objects.push(PreparedObject {
+                object: DetectedObject {
+                    id,
+                    frame,
+                    views: reports,
+                    refused: ObjectRefusals::default(),
+                },
+                views,
+                points,
+            });
+        }
+        clock.lap(&mut timings.select);
+
+        let view = match &scene.sensor {
+            SensorInput::Depth(frame) => Some(FieldOfView::of(frame, &scene.world_from_camera)),
+            SensorInput::Cloud(_) => None,
+        };
+        Ok(Prepared {
+            covered: vec![false; objects.len()],
+            objects,
+            table,
+            view,
+            inferred,
+            batch,
+            untried,
+            earlier: Vec::new(),
+            earlier_maps: Vec::new(),
+            options: options.clone(),
+            timings,
+        })
+    }
+
+    /// Maps of the prepared batch -> ranked grasps, or, with
+    /// [`PlanOptions::view_cascade`], the next views of the objects that have
+    /// no grasp yet (clearing `min_quality` and the hand check) while any
+    /// such object has a view left. Every round's maps count in the plan.
+    pub fn finish_or_cascade(&self, mut prepared: Prepared, maps: &GraspMaps) -> Result<Finished> {
+        maps.check_matches(&prepared.batch)?;
+        if prepared.options.view_cascade && prepared.untried.iter().any(|u| !u.is_empty()) {
+            let start = Instant::now();
+            // Whether an object has a grasp that passes depends on its own
+            // views alone, and earlier rounds' views are already counted:
+            // only this round's views are decoded to update the cover.
+            let newly = self.objects_with_grasps(&prepared, &prepared.inferred, maps);
+            for (covered, newly) in prepared.covered.iter_mut().zip(newly) {
+                *covered |= newly;
+            }
+            let (entries, all) = prepared.rounds_so_far(maps);
+            let mut batch = ViewBatch::new(prepared.batch.size_px);
+            let mut next = Vec::new();
+            let objects = prepared.objects.iter_mut().zip(&mut prepared.untried);
+            for (index, ((o, untried), &covered)) in objects.zip(&prepared.covered).enumerate() {
+                if covered || untried.is_empty() {
+                    continue;
+                }
+                let v = untried.remove(0);
+                batch.push(&o.views[v].image);
+                o.object.views[v].inferred = true;
+                next.push((index, v));
+            }
+            prepared.timings.decode += start.elapsed();
+            if !next.is_empty() {
+                prepared.earlier = entries;
+                prepared.earlier_maps = all.data;
+                prepared.inferred = next;
+                prepared.batch = batch;
+                return Ok(Finished::More(Box::new(prepared)));
+            }
+        }
+        self.finish(prepared, maps)
+            .map(|plan| Finished::Plan(Box::new(plan)))
+    }
+
+    /// Which objects have at least one grasp that clears `min_quality` and
+    /// the hand check in the maps so far.
+    fn objects_with_grasps(
+        &self,
+        prepared: &Prepared,
+        entries: &[(usize, usize)],
+        maps: &GraspMaps,
+    ) -> Vec<bool> {
+        let options = PlanOptions {
+            max_grasps: usize::MAX,
+            keep_views: false,
+            ..prepared.options.clone()
+        };
+        // One grasp per object answers the question: the check stops there.
+        let vetted = self.decode_and_rank(prepared, entries, maps, &options, 1);
+        let mut covered = vec![false; prepared.objects.len()];
+        for g in &vetted.ranked.grasps {
+            if let Some(i) = prepared.objects.iter().position(|o| o.object.id == g.object_id) {
+                covered[i] = true;
+            }
+        }
+        covered
+    }
+
+    /// Decodes every inferred view (`entries`, rows of `maps`), checks the
+    /// hand and ranks: the grasps, and what the check refused, deferred or turned.
+    fn decode_and_rank(
+        &self,
+        prepared: &Prepared,
+        entries: &[(usize, usize)],
+        maps: &GraspMaps,
+        options: &PlanOptions,
+        max_per_object: usize,
+    ) -> Vetted {
+        let (objects, table, view) = (&prepared.objects, &prepared.table, &prepared.view);
+        let mut grasps = Vec::new();
+        for (batch_index, &(object, view)) in entries.iter().enumerate() {
+            let o = &objects[object];
+            let placement = ViewPlacement {
+                view: &o.views[view],
+                world_from_object: &o.object.frame.world_from_object,
+                object_id: o.object.id,
+            };
+            grasps.extend(decode_view(
+                &placement,
+                maps,
+                batch_index,
+                &self.contract,
+                &options.gripper,
+                table,
+                options.min_quality,
+                &self.config.decode,
+            ));
+        }
+        // Approaches the robot cannot take: dropped before anything else.
+        let mut per_object = vec![ObjectRefusals::default(); objects.len()];
+        let index_of = |id: u32| objects.iter().position(|o| o.object.id == id);
+        if let Some(cone) = &options.approach_cone {
+            grasps.retain(|g| {
+                let within = cone.allows(&approach_of(g));
+                if let (false, Some(i)) = (within, index_of(g.object_id)) {
+                    per_object[i].outside_approach_cone += 1;
+                }
+                within
+            });
+        }
+        let obstacles: Vec<Obstacle<'_>> = objects
+            .iter()
+            .map(|o| Obstacle {
+                world_from_object: &o.object.frame.world_from_object,
+                extent_min_m: &o.object.frame.extent_min_m,
+                extent_max_m: &o.object.frame.extent_max_m,
+                points: &o.points,
+            })
+            .collect();
+        let mut turned_square = 0;
+        let vetting = Vetting {
+            hand: &self.config.hand,
+            gripper: &options.gripper,
+            table,
+            obstacles: &obstacles,
+            view: view.as_ref(),
+            table_clearance_m: self.config.decode.table_clearance_m,
+        };
+        let centre_weight = self.config.decode.centre_weight;
+        let score = |g: &Grasp| match index_of(g.object_id) {
+            Some(i) if centre_weight != 0.0 => {
+                let centre = objects[i].object.frame.world_from_object.translation.vector;
+                g.quality - centre_weight * (lever_arm_m(g, &centre) / 0.1) as f32
+            }
+            _ => g.quality,
+        };
+        let ranked = rank_grasps_scored(
+            grasps,
+            &RankConfig {
+                min_quality: options.min_quality,
+                max_per_object,
+                max_grasps: options.max_grasps,
+            },
+            score,
+            |g| {
+                let own = index_of(g.object_id);
+                vet(g, own, &vetting, &mut per_object, &mut turned_square)
+            },
+        );
+        Vetted {
+            ranked,
+            turned_square,
+            per_object,
+        }
+    }
+
+    /// Maps of the prepared batch (and of earlier cascade rounds) -> ranked
+    /// grasps; no further view is inferred.
+    pub fn finish(&self, prepared: Prepared, maps: &GraspMaps) -> Result<Plan> {
+        maps.check_matches(&prepared.batch)?;
+        let start = Instant::now();
+        let (inferred, maps) = prepared.rounds_so_far(maps);
+        let Vetted {
+            ranked,
+            turned_square,
+            per_object,
+        } = self.decode_and_rank(
+            &prepared,
+            &inferred,
+            &maps,
+            &prepared.options,
+            self.config.max_grasps_per_object,
+        );
+        let Prepared {
+            objects,
+            table,
+            options,
+            mut timings,
+            ..
+        } = prepared;
+        let count = |why: RankedLast| ranked.deferred.iter().filter(|&&d| d == why).count();
+        let total = |f: fn(&ObjectRefusals) -> usize| per_object.iter().map(f).sum::<usize>();
+        let refusals = Refusals {
+            table: total(|r| r.table),
+            own_object: total(|r| r.own_points),
+            neighbour: total(|r| r.neighbour),
+        };
+        let outside_approach_cone = total(|r| r.outside_approach_cone);
+        let mut debug_views = Vec::new();
+        if options.keep_views {
+            let per_view = 4 * maps.size_px * maps.size_px;
+            for (object_index, o) in objects.iter().enumerate() {
+                for (v, view) in o.views.iter().enumerate() {
+                    let maps = inferred
+                        .iter()
+                        .position(|&e| e == (object_index, v))
+                        .map(|b| maps.data[b * per_view..(b + 1) * per_view].to_vec());
+                    debug_views.push(DebugView {
+                        object_id: o.object.id,
+                        view: view.clone(),
+                        maps,
+                    });
+                }
+            }
+        }
+        timings.decode += start.elapsed();
+        Ok(Plan {
+            grasps: ranked.grasps,
+            refused_for_collision: ranked.refused,
+            refusals,
+            ranked_after_turned_away: count(RankedLast::TurnedAway),
+            ranked_last_out_of_view: count(RankedLast::OutOfView),
+            outside_approach_cone,
+            turned_square,
+            objects: objects
+                .into_iter()
+                .zip(per_object)
+                .map(|(o, refused)| DetectedObject { refused, ..o.object })
+                .collect(),
+            table,
+            timings,
+            debug_views,
+        })
+    }
+
+    /// The whole pipeline with `net` run in-process.
+    pub fn plan(
+        &self,
+        scene: &SceneInput<'_>,
+        options: &PlanOptions,
+        net: &mut dyn GraspNet,
+    ) -> Result<Plan> {
+        if net.contract() != &self.contract {
+            return Err(Error::Backend(format!(
+                "network contract {:?} differs from the planner's {:?}",
+                net.contract().model_version,
+                self.contract.model_version
+            )));
+        }
+        let mut prepared = self.prepare(scene, options)?;
+        let mut inference = Duration::ZERO;
+        loop {
+            let start = Instant::now();
+            let maps = if prepared.batch.len == 0 {
+                GraspMaps {
+                    size_px: prepared.batch.size_px,
+                    len: 0,
+                    data: Vec::new(),
+                }
+            } else {
+                net.infer(&prepared.batch)?
+            };
+            inference += start.elapsed();
+            prepared.set_inference_time(inference);
+            match self.finish_or_cascade(prepared, &maps)? {
+                Finished::Plan(plan) => return Ok(*plan),
+                Finished::More(next) => prepared = *next,
+            }
+        }
+    }
+}
+
+/// Times consecutive stages: each lap is the time since the previous one.
+struct Stopwatch(Instant);
+
+impl Stopwatch {
+    fn start() -> Self {
+        Self(Instant::now())
+    }
+
+    /// Writes the time since the last lap (or the start) into `slot`.
+    fn lap(&mut self, slot: &mut Duration) {
+        let now = Instant::now();
+        *slot = now - self.0;
+        self.0 = now;
+    }
+}
