@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Every relative link in the tracked Markdown files, and every
-`docs/experiments/NAME.md` named in the tracked sources and docs, points at
+dated `docs/experiments/` file named in the tracked sources and docs, points at
 a file that exists. Standard library only; run from anywhere in the repo.
 
     python3 scripts/check_links.py          # exits 1 and lists what is broken
@@ -11,7 +11,7 @@ import subprocess
 import sys
 
 LINK = re.compile(r"\]\(([^)\s]+)\)")
-EXPERIMENT = re.compile(r"docs/experiments/[A-Za-z0-9_.-]+\.md")
+EXPERIMENT = re.compile(r"docs/experiments/\d{4}-\d{2}-\d{2}-[A-Za-z0-9_.-]+\.md")
 SOURCES = (".md", ".rs", ".py", ".sh", ".toml")
 
 

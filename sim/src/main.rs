@@ -396,8 +396,7 @@ fn main() -> anyhow::Result<()> {
                 neighbours: !without_neighbours,
                 ..TargetConfig::default()
             };
-            let data_version =
-                data_version.unwrap_or_else(|| mvgrasp_sim::dataset::DATA_VERSION.to_owned());
+            let data_version = data_version.unwrap_or_else(|| mvgrasp_sim::dataset::DATA_VERSION.to_owned());
             let contract = ModelContract {
                 input_size_px,
                 pixel_size_m: pixel_size_mm / 1000.0,
