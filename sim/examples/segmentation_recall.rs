@@ -4,8 +4,8 @@
 //!
 //!     cargo run --release -p mvgrasp-sim --example segmentation_recall [EPISODES] [PNG_DIR|-] [CREASE] [SEED]
 //!
-//! `CREASE` is the split compared with none, in `sim eval --crease-split`'s
-//! form (default `on`); `SEED` the first episode's seed (default 800000).
+//! `CREASE` is the split compared with none, as `sim eval --crease-split`
+//! takes it (`on`, the default, or `split-only`); `SEED` the first episode's seed (default 800000).
 //!
 //! Scored on pixels, against the renderer's labels, over the pixels the
 //! planner kept as object points:

@@ -164,10 +164,8 @@ enum Command {
         #[arg(long, default_value_t = 2)]
         snapshots: usize,
         /// The in-process planner's crease split: `off` (the planner's
-        /// default), `on` (`CreaseConfig`'s defaults), `split-only` (no
-        /// re-joining of parts that hang on another), or
-        /// `SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART[:AREA_CM2:SHARE:OUTLINE:STEP_MM]`
-        /// to try others (`CreaseConfig`, `Reattach`).
+        /// default), `on` (`CreaseConfig`'s defaults) or `split-only` (no
+        /// re-joining of parts that hang on another).
         #[arg(long, default_value = "off")]
         crease_split: String,
         /// Also label the first setting's episode frames (each scene as the

@@ -51,7 +51,7 @@ use std::time::Instant;
 use mvgrasp_core::rng::SplitMix64;
 use mvgrasp_core::{
     ClusterConfig, CreaseConfig, FieldOfView, Grasp, GraspNet, ModelContract, Plan, PlanOptions, Planner,
-    PlannerConfig, Reattach, Repairs, ViewAxis, ViewPolicy, Workspace,
+    PlannerConfig, Repairs, ViewAxis, ViewPolicy, Workspace,
 };
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use parry3d::math::Pose;

@@ -69,96 +69,38 @@ pub fn square_turn_setting(deg: f64) -> Result<f64> {
     }
 }
 
-/// The crease split from its text form (`sim eval --crease-split`): `on`
-/// (`CreaseConfig`'s defaults), `off` (the planner's default), `split-only` (the defaults without step 6, parts
-/// hanging on another joining it), or
-/// `SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART` (the fields of
-/// [`CreaseConfig`], the valley in millimetres; step 6 with its defaults),
-/// followed by `:AREA_CM2:SHARE:OUTLINE:STEP_MM` for step 6 ([`Reattach`]'s
-/// fields; an area of 0 turns it off).
+/// The crease split from its text form (`sim eval --crease-split`): `off`
+/// (the planner's default), `on` (`CreaseConfig`'s defaults, as
+/// `[segment] crease_split = true` in the server's settings) or
+/// `split-only` (the defaults without step 6, parts hanging on another
+/// joining it). Other thresholds are `CreaseConfig`'s fields, for code.
 pub fn crease_setting(text: &str) -> Result<Option<CreaseConfig>> {
-    let bad = |reason: String| Error::Invalid {
-        field: "crease-split",
-        reason,
-    };
     match text {
-        "on" => return Ok(Some(CreaseConfig::default())),
-        "off" => return Ok(None),
-        "split-only" => {
-            return Ok(Some(CreaseConfig {
-                reattach: None,
-                ..CreaseConfig::default()
-            }));
-        }
-        _ => {}
+        "on" => Ok(Some(CreaseConfig::default())),
+        "off" => Ok(None),
+        "split-only" => Ok(Some(split_only())),
+        _ => Err(Error::Invalid {
+            field: "crease-split",
+            reason: format!("{text:?} is not on, off or split-only"),
+        }),
     }
-    let usage = || {
-        bad(format!(
-            "{text:?} is not on, off, split-only, SMOOTH_PX:BASELINE_PX:VALLEY_MM:RATIO:MIN_PART \
-             or that followed by :AREA_CM2:SHARE:OUTLINE:STEP_MM"
-        ))
-    };
-    let fields: Vec<&str> = text.split(':').collect();
-    let (split, attach) = fields.split_at(fields.len().min(5));
-    let [smooth, baseline, valley_mm, ratio, min_part] = split[..] else {
-        return Err(usage());
-    };
-    let number = |name: &str, v: &str| -> Result<f64> {
-        v.parse::<f64>()
-            .ok()
-            .filter(|x| x.is_finite() && *x >= 0.0)
-            .ok_or_else(|| bad(format!("{text:?}: {name} {v:?} is not a number >= 0")))
-    };
-    let whole = |name: &str, v: &str| -> Result<usize> {
-        v.parse::<usize>()
-            .map_err(|e| bad(format!("{text:?}: {name} {v:?}: {e}")))
-    };
-    let config = CreaseConfig {
-        smooth_radius_px: whole("smoothing radius", smooth)?,
-        baseline_px: whole("baseline", baseline)?,
-        min_valley_m: (number("valley depth", valley_mm)? / 1000.0) as f32,
-        min_valley_ratio: number("ratio", ratio)? as f32,
-        min_part_points: whole("smallest part", min_part)?,
-        reattach: match attach {
-            [] => Some(Reattach::default()),
-            [area_cm2, share, outline, step_mm] => Some(Reattach {
-                max_area_m2: (number("area", area_cm2)? / 1e4) as f32,
-                max_share: number("share", share)? as f32,
-                min_outline_share: number("outline share", outline)? as f32,
-                max_step_m: (number("step", step_mm)? / 1000.0) as f32,
-            })
-            .filter(|r| r.max_area_m2 > 0.0),
-            _ => return Err(usage()),
-        },
-    };
-    if config.baseline_px == 0 {
-        return Err(bad(format!("{text:?}: the baseline must be at least 1 px")));
+}
+
+fn split_only() -> CreaseConfig {
+    CreaseConfig {
+        reattach: None,
+        ..CreaseConfig::default()
     }
-    Ok(Some(config))
 }
 
 /// The text form of a crease split, as [`crease_setting`] reads it back
-/// (recorded in a dataset's manifest: the segmentation made its views).
+/// (recorded in a dataset's manifest: the segmentation made its views); a
+/// split with other thresholds than those is written out field by field.
 pub fn crease_text(crease: Option<&CreaseConfig>) -> String {
-    let Some(c) = crease else {
-        return "off".into();
-    };
-    let split = format!(
-        "{}:{}:{}:{}:{}",
-        c.smooth_radius_px,
-        c.baseline_px,
-        c.min_valley_m * 1000.0,
-        c.min_valley_ratio,
-        c.min_part_points
-    );
-    match &c.reattach {
-        None => format!("{split}:0:0:0:0"),
-        Some(r) => format!(
-            "{split}:{}:{}:{}:{}",
-            r.max_area_m2 * 1e4,
-            r.max_share,
-            r.min_outline_share,
-            r.max_step_m * 1000.0
-        ),
+    match crease {
+        None => "off".into(),
+        Some(c) if *c == CreaseConfig::default() => "on".into(),
+        Some(c) if *c == split_only() => "split-only".into(),
+        Some(c) => format!("{c:?}"),
     }
 }

@@ -2,7 +2,7 @@
 //! `episodes`, `hooks` (what an episode hands out), `stats` (summaries and reports).
 
 use mvgrasp_core::{
-    CreaseConfig, GraspNet, MomentsNet, Planner, PlannerConfig, Reattach, Repairs, ViewAxis, ViewPolicy,
+    CreaseConfig, GraspNet, MomentsNet, Planner, PlannerConfig, Repairs, ViewAxis, ViewPolicy,
 };
 use mvgrasp_sim::camera::Camera;
 use mvgrasp_sim::camera::Frame;
