@@ -89,6 +89,10 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
     below it are tried from the same state, recorded, and the state put
     back (the episode goes on from its own attempt)."""
     cell, specs = scenes.make(scenario, pool, seed, episode)
+
+    def name_of(index):
+        return specs[index].name if index is not None else None
+
     rng = np.random.default_rng([seed, episode, 13])
     pose = cammod.sample_pose(camera_kind, rng, resolution)
     cam = cammod.DepthCamera(cell.model, pose.width, pose.height)
@@ -165,14 +169,13 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                               "width_m": round(grasp["width_m"], 4), "view": grasp["view"],
                               "grasp": {"position": [round(v, 4) for v in grasp["position"]],
                                         "orientation": [round(v, 5) for v in grasp["orientation"]]},
-                              "target": specs[target].name if target is not None else None, **details})
+                              "target": name_of(target), **details})
                 if recorder is not None:
-                    name = specs[target].name if target is not None else None
-                    recorder.add(plan, grasp, chosen, outcome, attempt, False, name)
+                    recorder.add(plan, grasp, chosen, outcome, attempt, False, name_of(target))
                     if alternatives > 0:
                         _try_alternatives(cell, before, ask, grasps, chosen + 1, alternatives, remaining, table,
                                           lambda k, o, t: recorder.add(plan, grasps[k], k, o, attempt, True,
-                                                                       specs[t].name if t is not None else None))
+                                                                       name_of(t)))
                 break
             if outcome is None:
                 entry["outcome"] = "unreachable"

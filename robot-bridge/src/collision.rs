@@ -283,25 +283,18 @@ impl CollisionWorld {
     /// The first obstacle the arm at `q` touches, if any.
     pub fn collision(&self, arm: &Ur5e, q: &Joints) -> Option<&str> {
         let (capsules, boxes) = self.shapes(arm, q);
-        let fingers_from = boxes.len().saturating_sub(HandModel::FINGERS);
+        let (palm, fingers) = boxes.split_at(boxes.len().saturating_sub(HandModel::FINGERS));
         let hits = |o: &Obstacle| {
             // A shape parry cannot test counts as touching.
             let touch = |pose: &Pose, shape: &dyn parry3d::shape::Shape| {
                 intersection_test(pose, shape, &o.pose, &o.cuboid).map_or(true, |hit| hit.intersecting)
             };
-            let (palm, fingers) = boxes.split_at(fingers_from);
-            let palm: &[_] = if o.detected && !self.palm_against_detected {
-                &[]
-            } else {
-                palm
-            };
-            let fingers: &[_] = if o.detected && !self.fingers_against_detected {
-                &[]
-            } else {
-                fingers
+            let part_hits = |part: &[(Pose, Cuboid)], against_detected: bool| {
+                (!o.detected || against_detected) && part.iter().any(|(p, b)| touch(p, b))
             };
             capsules.iter().any(|c| touch(&Pose::IDENTITY, c))
-                || palm.iter().chain(fingers).any(|(p, b)| touch(p, b))
+                || part_hits(palm, self.palm_against_detected)
+                || part_hits(fingers, self.fingers_against_detected)
         };
         self.obstacles.iter().find(|o| hits(o)).map(|o| o.name.as_str())
     }
