@@ -3,10 +3,12 @@
 #![allow(clippy::expect_used)] // fixtures stop the test on bad set-up
 
 mod decoding;
+mod hand;
 mod inputs;
 mod properties;
 mod scene;
 mod scenes;
+mod views;
 
 use mvgrasp_core::{GraspNet, MomentsNet, Plan, PlanOptions, Planner, PlannerConfig, Workspace};
 use scene::{Camera, Rendered, Scene};

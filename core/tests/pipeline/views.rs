@@ -1,0 +1,144 @@
+//! Which views an object is planned from: the view cascade and the
+//! approach cone.
+
+use mvgrasp_core::{GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig, ViewPolicy, approach_of};
+use nalgebra::Vector3;
+
+use crate::scene::{self, Camera, grid_scene};
+use crate::{plan_rendered, table_workspace};
+
+/// A network that answers nothing on its first call, then as the analytic
+/// baseline: what a chosen view without a usable grasp looks like.
+struct SilentFirst {
+    net: MomentsNet,
+    calls: usize,
+}
+
+impl GraspNet for SilentFirst {
+    fn contract(&self) -> &mvgrasp_core::ModelContract {
+        self.net.contract()
+    }
+
+    fn infer(&mut self, batch: &mvgrasp_core::ViewBatch) -> mvgrasp_core::Result<mvgrasp_core::GraspMaps> {
+        self.calls += 1;
+        let mut maps = self.net.infer(batch)?;
+        if self.calls == 1 {
+            maps.data.iter_mut().for_each(|v| *v = 0.0);
+        }
+        Ok(maps)
+    }
+}
+
+/// An object whose chosen view gives no grasp goes on to its next view by
+/// entropy; with the cascade off (the paper's single pass) it gets none.
+#[test]
+fn the_view_cascade_tries_the_next_view() {
+    let scene = grid_scene(0.1, 5, 5, 0.12);
+    let camera = Camera::orbit(Vector3::new(0.0, 0.0, 0.1), 0.8, 50.0, -90.0);
+    let rendered = scene::render(&scene, &camera);
+    let bytes = rendered.depth_bytes();
+    let input = camera.scene_input(&bytes, table_workspace(&scene));
+    for cascade in [true, false] {
+        let mut net = SilentFirst {
+            net: MomentsNet::default(),
+            calls: 0,
+        };
+        let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).expect("planner");
+        let options = PlanOptions {
+            view_policy: ViewPolicy::Entropy,
+            max_grasps: 50,
+            min_quality: 0.1,
+            view_cascade: cascade,
+            ..PlanOptions::default()
+        };
+        let plan = planner.plan(&input, &options, &mut net).expect("plan");
+        assert_eq!(plan.objects.len(), 5);
+        if cascade {
+            assert!(net.calls >= 2, "a second round was inferred");
+            assert!(!plan.grasps.is_empty());
+            for object in &plan.objects {
+                let inferred: Vec<_> = object.views.iter().filter(|v| v.inferred).collect();
+                assert!(
+                    inferred.len() >= 2,
+                    "object {}: the next view was tried",
+                    object.id
+                );
+                // Views go in entropy order, and only while the object has no grasp.
+                let best_left = object
+                    .views
+                    .iter()
+                    .filter(|v| !v.inferred)
+                    .map(|v| v.entropy)
+                    .fold(f64::NEG_INFINITY, f64::max);
+                assert!(inferred.iter().all(|v| v.entropy >= best_left));
+                let has_grasp = plan.grasps.iter().any(|g| g.object_id == object.id);
+                assert!(
+                    has_grasp || inferred.len() == 3,
+                    "object {}: stopped without a grasp",
+                    object.id
+                );
+            }
+        } else {
+            assert_eq!(net.calls, 1);
+            assert!(plan.grasps.is_empty());
+            for object in &plan.objects {
+                assert_eq!(object.views.iter().filter(|v| v.inferred).count(), 1);
+            }
+        }
+    }
+}
+
+/// An approach cone keeps only the grasps within it (the rest are counted),
+/// and the view cascade then finds each object a grasp from the views that
+/// approach within the cone.
+#[test]
+fn an_approach_cone_keeps_only_the_approaches_within_it() {
+    let scene = grid_scene(0.1, 5, 5, 0.12);
+    let camera = Camera::orbit(Vector3::new(0.0, 0.0, 0.1), 0.8, 50.0, -90.0);
+    let every = PlanOptions {
+        view_policy: ViewPolicy::All,
+        max_grasps: 50,
+        min_quality: 0.1,
+        ..PlanOptions::default()
+    };
+    let (free, _) = plan_rendered(&scene, &camera, &every);
+    assert_eq!(free.outside_approach_cone, 0);
+    let from_above =
+        mvgrasp_core::ApproachCone::new(Vector3::new(0.0, 0.0, -2.0), 30f64.to_radians()).unwrap();
+    for policy in [ViewPolicy::All, ViewPolicy::Entropy] {
+        let options = PlanOptions {
+            view_policy: policy,
+            approach_cone: Some(from_above),
+            ..every.clone()
+        };
+        let (plan, _) = plan_rendered(&scene, &camera, &options);
+        assert!(plan.outside_approach_cone > 0, "{policy:?}");
+        // Each object accounts for its own losses; they add up to the plan's.
+        let sum = |f: fn(&mvgrasp_core::ObjectRefusals) -> usize| -> usize {
+            plan.objects.iter().map(|o| f(&o.refused)).sum()
+        };
+        assert_eq!(sum(|r| r.outside_approach_cone), plan.outside_approach_cone);
+        assert_eq!(
+            sum(|r| r.table + r.neighbour + r.own_points),
+            plan.refused_for_collision
+        );
+        assert_eq!(sum(|r| r.table), plan.refusals.table);
+        for g in &plan.grasps {
+            assert!(
+                approach_of(g).z <= -(30f64.to_radians().cos()) + 1e-9,
+                "{policy:?}"
+            );
+        }
+        for object in &plan.objects {
+            assert!(
+                plan.grasps.iter().any(|g| g.object_id == object.id),
+                "{policy:?}: object {} has no grasp from above",
+                object.id
+            );
+        }
+    }
+    assert!(mvgrasp_core::ApproachCone::new(Vector3::zeros(), 1.0).is_err());
+    assert!(mvgrasp_core::ApproachCone::new(Vector3::z(), 0.0).is_err());
+    assert!(mvgrasp_core::ApproachCone::new(Vector3::z(), 3.2).is_err());
+    assert!(mvgrasp_core::ApproachCone::new(Vector3::z(), std::f64::consts::PI).is_ok());
+}
