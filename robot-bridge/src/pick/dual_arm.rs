@@ -67,7 +67,7 @@ mod tests {
     use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
     use super::*;
-    use crate::pick::tests::{HOME, top_grasp};
+    use crate::pick::plan::tests::{HOME, top_grasp};
 
     #[test]
     fn each_grasp_goes_to_the_arm_that_reaches_it_more_cheaply() {

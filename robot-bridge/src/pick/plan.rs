@@ -1,0 +1,640 @@
+//! Planning one pick: for each ranked grasp, both half turns about its
+//! approach, the pre-grasp, the linear approach and lift, the pose over the
+//! basket and the joint moves between them, the cheaper feasible one kept.
+
+use std::f64::consts::PI;
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+use super::{GraspTarget, PickConfig, PickPlan, Step};
+use crate::collision::{BoxObstacle, CollisionWorld};
+use crate::error::{Error, Result};
+use crate::ur5e::{Joints, Ur5e, check_joints, check_pose, max_joint_move};
+
+/// The best-ranked grasp whose pick is feasible and collision-free, and its
+/// steps; grasps are tried in the given (ranked) order. `scene` holds the
+/// detected objects as boxes; a grasp's own object (`GraspTarget::object`)
+/// is left out of its checks. An error says why the last grasp failed.
+pub fn plan_pick(
+    arm: &Ur5e,
+    config: &PickConfig,
+    grasps: &[GraspTarget],
+    scene: &[BoxObstacle],
+    current: &Joints,
+) -> Result<PickPlan> {
+    check_joints("current_joints", current)?;
+    let mut last_error = Error::Unreachable("no grasp given".to_owned());
+    for (index, grasp) in grasps.iter().enumerate() {
+        let neighbours = scene
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| Some(*i) != grasp.object)
+            .map(|(_, o)| o);
+        let opening = approach_opening(grasp.width_m);
+        let world = CollisionWorld::new(
+            config.world_from_base,
+            &config.obstacles,
+            config.arm_model.clone(),
+        )
+        .with_detected(neighbours)
+        .with_gripper(
+            config.flange_from_tcp * Translation3::new(0.0, 0.0, config.fingertip_along(opening)),
+            opening,
+        );
+        let near = world
+            .clone()
+            .with_fingers_against_detected(config.check_fingers_near_grasp)
+            .with_palm_against_detected(config.check_palm_near_grasp);
+        match plan_one(arm, config, [&world, &near], grasp, current) {
+            Ok(steps) => {
+                return Ok(PickPlan {
+                    grasp_index: index,
+                    steps,
+                });
+            }
+            Err(e @ Error::InvalidInput { .. }) => return Err(e),
+            Err(e) => last_error = e,
+        }
+    }
+    Err(last_error)
+}
+
+/// How far the fingers open for the approach to a grasp `width_m` wide:
+/// 2 cm more, within the 2F-140's 14 cm stroke. The collision checks use it
+/// for the whole pick (the fingers are never wider).
+fn approach_opening(width_m: f64) -> f64 {
+    (width_m + 0.02).clamp(0.0, 0.14)
+}
+
+/// The pick of one grasp; `near` is `world` as the approach and the lift
+/// check it.
+fn plan_one(
+    arm: &Ur5e,
+    config: &PickConfig,
+    [world, near]: [&CollisionWorld; 2],
+    grasp: &GraspTarget,
+    current: &Joints,
+) -> Result<Vec<Step>> {
+    check_pose("grasp.world_from_grasp", &grasp.world_from_grasp)?;
+    if !(grasp.width_m.is_finite() && grasp.width_m >= 0.0) {
+        return Err(Error::InvalidInput {
+            field: "grasp.width_m",
+            reason: format!("{}", grasp.width_m),
+        });
+    }
+    if let Some(hit) = world.collision(arm, current) {
+        return Err(Error::Controller(format!(
+            "the arm already touches `{hit}` at its current joints"
+        )));
+    }
+    let base_from_world = config.world_from_base.inverse();
+    let tcp_from_flange = config.flange_from_tcp.inverse();
+    let flange_for = |world_from_tcp: &Isometry3<f64>| base_from_world * world_from_tcp * tcp_from_flange;
+    let joint_path = |from: &Joints, to: &Joints| {
+        world.plan_joint_path(arm, from, to, config.rrt_seed, config.rrt_iterations)
+    };
+    let mut best: Option<(f64, Vec<Step>)> = None;
+    let mut reason = "no IK solution within the limits".to_owned();
+    // The TCP held back along the approach by where the fingertips will be
+    // when the pads meet the object, so that they meet it at the grasp.
+    let contact = (grasp.width_m - config.opening_margin_m).max(0.0);
+    let tips_at_contact = config.fingertip_along(contact);
+    for flip in [0.0, PI] {
+        let world_from_grasp =
+            grasp.world_from_grasp * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), flip);
+        let approach = world_from_grasp.rotation * Vector3::z();
+        let world_from_tcp = Translation3::from(-tips_at_contact * approach) * world_from_grasp;
+        let pre = Isometry3::from_parts(
+            Translation3::from(world_from_tcp.translation.vector - config.pregrasp_m * approach),
+            world_from_tcp.rotation,
+        );
+        let lift = Isometry3::from_parts(
+            Translation3::from(world_from_tcp.translation.vector + config.lift_m * Vector3::z()),
+            world_from_tcp.rotation,
+        );
+        let Ok(q_pre) = arm.inverse_nearest(&flange_for(&pre), current) else {
+            continue;
+        };
+        let (q_grasp, approach_path) = match linear(
+            arm,
+            config,
+            near,
+            &flange_for(&pre),
+            &flange_for(&world_from_tcp),
+            &q_pre,
+        ) {
+            Ok(line) => line,
+            Err(e) => {
+                reason = format!("approach: {e}");
+                continue;
+            }
+        };
+        let (q_lift, lift_path) = match linear(
+            arm,
+            config,
+            near,
+            &flange_for(&world_from_tcp),
+            &flange_for(&lift),
+            &q_grasp,
+        ) {
+            Ok(line) => line,
+            Err(e) => {
+                reason = format!("lift: {e}");
+                continue;
+            }
+        };
+        // Over the basket the tool's turn about the vertical does not matter:
+        // take the nearest quarter turn that is free of collisions.
+        let Some(q_drop) = [0.0, PI / 2.0, PI, -PI / 2.0]
+            .iter()
+            .filter_map(|yaw| {
+                let drop = config.world_from_drop * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), *yaw);
+                arm.inverse_nearest(&flange_for(&drop), &q_lift).ok()
+            })
+            .filter(|q| world.collision(arm, q).is_none())
+            .min_by(|a, b| max_joint_move(&q_lift, a).total_cmp(&max_joint_move(&q_lift, b)))
+        else {
+            reason = "no collision-free pose over the basket".to_owned();
+            continue;
+        };
+        // Joint moves: straight if free, else around obstacles (RRT-Connect).
+        let (Some(to_pre), Some(to_drop), Some(back)) = (
+            joint_path(current, &q_pre),
+            joint_path(&q_lift, &q_drop),
+            joint_path(&q_drop, &q_lift),
+        ) else {
+            reason = "no collision-free joint path (RRT-Connect gave up)".to_owned();
+            continue;
+        };
+        let via = |path: &[Joints], name: &'static str| -> Vec<Step> {
+            let n = path.len();
+            path[1..]
+                .iter()
+                .enumerate()
+                .map(|(k, q)| Step::MoveJ {
+                    name: if k + 2 == n { name } else { "via" },
+                    joints: *q,
+                })
+                .collect()
+        };
+        let cost = max_joint_move(current, &q_pre);
+        let mut steps = vec![Step::Gripper {
+            name: "open before approach",
+            close: false,
+            width_m: approach_opening(grasp.width_m),
+        }];
+        steps.extend(via(&to_pre, "pre-grasp"));
+        steps.push(Step::MoveL {
+            name: "approach",
+            base_from_tcp: base_from_world * world_from_tcp,
+            joints: q_grasp,
+            path: approach_path,
+        });
+        steps.push(Step::Gripper {
+            name: "close",
+            close: true,
+            width_m: 0.0,
+        });
+        steps.push(Step::MoveL {
+            name: "lift",
+            base_from_tcp: base_from_world * lift,
+            joints: q_lift,
+            path: lift_path,
+        });
+        steps.extend(via(&to_drop, "over the basket"));
+        steps.push(Step::Gripper {
+            name: "release",
+            close: false,
+            width_m: 0.14,
+        });
+        steps.extend(via(&back, "retreat"));
+        if best.as_ref().is_none_or(|(c, _)| cost < *c) {
+            best = Some((cost, steps));
+        }
+    }
+    best.map(|(_, steps)| steps).ok_or_else(|| {
+        let p = grasp.world_from_grasp.translation.vector;
+        Error::Unreachable(format!(
+            "grasp at ({:.3}, {:.3}, {:.3}) m: {reason}",
+            p.x, p.y, p.z
+        ))
+    })
+}
+
+/// Solves a straight flange line from `from` to `to` at 1 cm steps starting
+/// at joints `start` and returns the joints at `to` and the samples after
+/// the start (ending with them); fails if a sample is unreachable, collides,
+/// or a joint jumps by more than `max_joint_step` (a flip through a
+/// singularity).
+fn linear(
+    arm: &Ur5e,
+    config: &PickConfig,
+    world: &CollisionWorld,
+    from: &Isometry3<f64>,
+    to: &Isometry3<f64>,
+    start: &Joints,
+) -> Result<(Joints, Vec<Joints>)> {
+    let distance = (to.translation.vector - from.translation.vector).norm();
+    let samples = ((distance / 0.01).ceil() as usize).max(1);
+    let mut q = *start;
+    let mut path = Vec::with_capacity(samples);
+    for k in 0..=samples {
+        let t = k as f64 / samples as f64;
+        let next = if k == 0 {
+            q
+        } else {
+            arm.inverse_nearest(&from.lerp_slerp(to, t), &q)?
+        };
+        if (0..6).any(|i| (next[i] - q[i]).abs() > config.max_joint_step) {
+            return Err(Error::Unreachable(
+                "the linear move crosses a singularity".to_owned(),
+            ));
+        }
+        if let Some(hit) = world.collision(arm, &next) {
+            return Err(Error::Unreachable(format!("the linear move hits `{hit}`")));
+        }
+        if k > 0 {
+            path.push(next);
+        }
+        q = next;
+    }
+    Ok((q, path))
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::pick::urscript;
+
+    /// A top-down grasp 0.45 m in front of the base at table height 0.
+    pub(in crate::pick) fn top_grasp(x: f64, y: f64, z: f64) -> GraspTarget {
+        GraspTarget {
+            world_from_grasp: Isometry3::from_parts(
+                Translation3::new(x, y, z),
+                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
+            ),
+            width_m: 0.05,
+            quality: 0.9,
+            object: None,
+        }
+    }
+
+    pub(in crate::pick) const HOME: Joints = [0.0, -PI / 2.0, PI / 2.0, -PI / 2.0, -PI / 2.0, 0.0];
+
+    #[test]
+    fn the_fingertips_meet_the_object_at_the_grasp() {
+        let arm = Ur5e::default();
+        // Tips 5 mm further out closed, 25 mm pulled back at 14 cm, as a 2F-140's.
+        let config = PickConfig {
+            fingertip_travel: vec![[0.0, 0.005], [0.06, 0.0], [0.14, -0.025]],
+            ..PickConfig::default()
+        };
+        assert_eq!(config.fingertip_along(-1.0), 0.005);
+        assert_eq!(config.fingertip_along(0.06), 0.0);
+        assert!((config.fingertip_along(0.10) + 0.0125).abs() < 1e-12);
+        assert_eq!(config.fingertip_along(0.2), -0.025);
+        assert_eq!(PickConfig::default().fingertip_along(0.1), 0.0);
+        // A 10 cm grasp: the pads meet the object at 8 cm, where the tips
+        // are 6.25 mm behind the calibrated TCP, so the TCP goes 6.25 mm
+        // further down than the grasp.
+        let mut grasp = top_grasp(0.1, -0.45, 0.05);
+        grasp.width_m = 0.10;
+        let tcp_z = |config: &PickConfig| {
+            let plan = plan_pick(&arm, config, &[grasp], &[], &HOME).unwrap();
+            plan.steps
+                .iter()
+                .find_map(|s| match s {
+                    Step::MoveL {
+                        name: "approach",
+                        base_from_tcp,
+                        joints,
+                        ..
+                    } => {
+                        let fk = config.world_from_base * arm.forward(joints) * config.flange_from_tcp;
+                        assert!(
+                            (fk.translation.vector
+                                - config.world_from_base * base_from_tcp.translation.vector)
+                                .norm()
+                                < 1e-6
+                        );
+                        Some(fk.translation.z)
+                    }
+                    _ => None,
+                })
+                .unwrap()
+        };
+        assert!((tcp_z(&PickConfig::default()) - 0.05).abs() < 1e-6);
+        assert!((tcp_z(&config) - (0.05 - 0.00625)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn reachable_grasp_gives_the_full_sequence_and_poses_match_fk() {
+        let arm = Ur5e::default();
+        let config = PickConfig::default();
+        let plan = plan_pick(&arm, &config, &[top_grasp(0.1, -0.45, 0.05)], &[], &HOME).unwrap();
+        let names: Vec<&str> = plan
+            .steps
+            .iter()
+            .map(|s| match s {
+                Step::MoveJ { name, .. } | Step::MoveL { name, .. } | Step::Gripper { name, .. } => *name,
+            })
+            .collect();
+        assert_eq!(
+            names,
+            [
+                "open before approach",
+                "pre-grasp",
+                "approach",
+                "close",
+                "lift",
+                "over the basket",
+                "release",
+                "retreat"
+            ]
+        );
+        // The approach ends with the TCP on the grasp (either half turn).
+        let Step::MoveL { joints, .. } = &plan.steps[2] else {
+            panic!("approach is linear")
+        };
+        let tcp = arm.forward(joints) * config.flange_from_tcp;
+        let grasp = top_grasp(0.1, -0.45, 0.05).world_from_grasp;
+        assert!((tcp.translation.vector - grasp.translation.vector).norm() < 1e-6);
+        let z_tcp = tcp.rotation * Vector3::z();
+        assert!(
+            (z_tcp - grasp.rotation * Vector3::z()).norm() < 1e-6,
+            "same approach"
+        );
+        // Carrying to the basket turns the wrist as needed rather than the
+        // whole arm: no joint swings by more than a radian.
+        let (Step::MoveL { joints: q_lift, .. }, Step::MoveJ { joints: q_drop, .. }) =
+            (&plan.steps[4], &plan.steps[5])
+        else {
+            panic!("lift then basket")
+        };
+        assert!(max_joint_move(q_lift, q_drop) < 1.0, "{q_lift:?} -> {q_drop:?}");
+        let script = urscript(&plan, &config);
+        assert!(script.starts_with("def mvgrasp_pick():\n  set_tcp(p[0.000000, 0.000000, 0.233000"));
+        assert_eq!(script.matches("movej(").count(), 3);
+        assert_eq!(script.matches("movel(").count(), 2);
+        assert!(script.ends_with("end\n"));
+    }
+
+    #[test]
+    fn unreachable_grasps_are_skipped_for_the_next_ranked_one() {
+        let arm = Ur5e::default();
+        let far = top_grasp(1.5, 0.0, 0.05);
+        let near = top_grasp(0.0, -0.5, 0.05);
+        let plan = plan_pick(&arm, &PickConfig::default(), &[far, near], &[], &HOME).unwrap();
+        assert_eq!(plan.grasp_index, 1);
+        let err = plan_pick(&arm, &PickConfig::default(), &[far], &[], &HOME).unwrap_err();
+        assert!(matches!(err, Error::Unreachable(_)), "{err}");
+    }
+
+    #[test]
+    fn nan_input_is_rejected_not_moved_on() {
+        let arm = Ur5e::default();
+        let mut bad = top_grasp(0.1, -0.45, 0.05);
+        bad.world_from_grasp.translation.vector.x = f64::NAN;
+        let err = plan_pick(
+            &arm,
+            &PickConfig::default(),
+            &[bad, top_grasp(0.1, -0.45, 0.05)],
+            &[],
+            &HOME,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                Error::InvalidInput {
+                    field: "grasp.world_from_grasp",
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let mut current = HOME;
+        current[2] = f64::INFINITY;
+        let err = plan_pick(
+            &arm,
+            &PickConfig::default(),
+            &[top_grasp(0.1, -0.45, 0.05)],
+            &[],
+            &current,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                Error::InvalidInput {
+                    field: "current_joints",
+                    ..
+                }
+            ),
+            "{err}"
+        );
+    }
+
+    fn table() -> BoxObstacle {
+        BoxObstacle {
+            name: "table".to_owned(),
+            world_from_box: Isometry3::translation(0.0, 0.0, -0.05),
+            half_extents_m: Vector3::new(1.2, 1.2, 0.05),
+        }
+    }
+
+    #[test]
+    fn neighbours_block_grasps_but_the_grasped_object_does_not() {
+        let arm = Ur5e::default();
+        let config = PickConfig {
+            obstacles: vec![table()],
+            ..PickConfig::default()
+        };
+        let mut grasp = top_grasp(0.1, -0.45, 0.05);
+        // The grasped object itself, 12 cm tall: the fingers straddle it,
+        // their boxes (1 cm margin) overlap its sides.
+        let target = BoxObstacle {
+            name: "target".to_owned(),
+            world_from_box: Isometry3::translation(0.1, -0.45, 0.06),
+            half_extents_m: Vector3::new(0.03, 0.03, 0.06),
+        };
+        grasp.object = Some(0);
+        assert!(plan_pick(&arm, &config, &[grasp], std::slice::from_ref(&target), &HOME).is_ok());
+        // Not told which object it grasps, and checking the fingers near the
+        // grasp too: they collide with it.
+        grasp.object = None;
+        let checking = PickConfig {
+            check_fingers_near_grasp: true,
+            ..config.clone()
+        };
+        let err = plan_pick(&arm, &checking, &[grasp], std::slice::from_ref(&target), &HOME).unwrap_err();
+        assert!(err.to_string().contains("target"), "{err}");
+        // A tall neighbour right beside the approach blocks it: 6 cm from
+        // the grasp across the closing direction it clears the 2F-140
+        // (3.7 cm half thick), 3 cm away it does not.
+        grasp.object = Some(0);
+        let neighbour = |y: f64| BoxObstacle {
+            name: "neighbour".to_owned(),
+            world_from_box: Isometry3::translation(0.1, y, 0.15),
+            half_extents_m: Vector3::new(0.04, 0.03, 0.15),
+        };
+        let beside = [target.clone(), neighbour(-0.36)];
+        assert!(plan_pick(&arm, &config, &[grasp], &beside, &HOME).is_ok());
+        let err = plan_pick(&arm, &config, &[grasp], &[target, neighbour(-0.39)], &HOME).unwrap_err();
+        assert!(err.to_string().contains("neighbour"), "{err}");
+    }
+
+    #[test]
+    fn near_the_grasp_the_palm_is_checked_against_the_cell_only_unless_asked() {
+        let arm = Ur5e::default();
+        let mut grasp = top_grasp(0.1, -0.45, 0.05);
+        grasp.object = Some(0);
+        grasp.width_m = 0.02;
+        let target = BoxObstacle {
+            name: "target".to_owned(),
+            world_from_box: Isometry3::translation(0.1, -0.45, 0.02),
+            half_extents_m: Vector3::new(0.008, 0.02, 0.02),
+        };
+        // A thin 20 cm tall box 7.0-7.9 cm from the grasp along the closing
+        // direction: outside the fingers at a 4 cm opening (6.8 cm out,
+        // margin included), inside the linkage (8 cm out, from 9.7 cm above
+        // the fingertips), below the flange.
+        let beside = BoxObstacle {
+            name: "neighbour".to_owned(),
+            world_from_box: Isometry3::translation(0.1745, -0.45, 0.1),
+            half_extents_m: Vector3::new(0.0045, 0.02, 0.1),
+        };
+        let scene = [target, beside];
+        let trusting = PickConfig {
+            obstacles: vec![table()],
+            ..PickConfig::default()
+        };
+        assert!(!trusting.check_palm_near_grasp, "the default");
+        assert!(plan_pick(&arm, &trusting, &[grasp], &scene, &HOME).is_ok());
+        let checking = PickConfig {
+            check_palm_near_grasp: true,
+            ..trusting.clone()
+        };
+        let err = plan_pick(&arm, &checking, &[grasp], &scene, &HOME).unwrap_err();
+        assert!(
+            err.to_string().contains("approach") && err.to_string().contains("neighbour"),
+            "{err}"
+        );
+        // The fingers checked near the grasp too: they clear it.
+        let fingers = PickConfig {
+            check_fingers_near_grasp: true,
+            ..trusting
+        };
+        assert!(plan_pick(&arm, &fingers, &[grasp], &scene, &HOME).is_ok());
+    }
+
+    #[test]
+    fn near_the_grasp_the_fingers_are_checked_against_the_cell_only_unless_asked() {
+        let arm = Ur5e::default();
+        let mut grasp = top_grasp(0.1, -0.45, 0.05);
+        grasp.object = Some(0);
+        let target = BoxObstacle {
+            name: "target".to_owned(),
+            world_from_box: Isometry3::translation(0.1, -0.45, 0.03),
+            half_extents_m: Vector3::new(0.02, 0.03, 0.03),
+        };
+        // A 6 cm tall box beside the grasp along the closing direction, 5 cm
+        // from its centre: inside a finger (3.5 to 8.3 cm out, margin
+        // included), below the linkage (8.7 cm above the fingertips).
+        let beside = BoxObstacle {
+            name: "neighbour".to_owned(),
+            world_from_box: Isometry3::translation(0.17, -0.45, 0.03),
+            half_extents_m: Vector3::new(0.02, 0.03, 0.03),
+        };
+        let scene = [target, beside.clone()];
+        let trusting = PickConfig {
+            obstacles: vec![table()],
+            ..PickConfig::default()
+        };
+        assert!(!trusting.check_fingers_near_grasp, "the default");
+        assert!(plan_pick(&arm, &trusting, &[grasp], &scene, &HOME).is_ok());
+        let checking = PickConfig {
+            check_fingers_near_grasp: true,
+            ..trusting.clone()
+        };
+        let err = plan_pick(&arm, &checking, &[grasp], &scene, &HOME).unwrap_err();
+        assert!(
+            err.to_string().contains("approach") && err.to_string().contains("neighbour"),
+            "{err}"
+        );
+        // The same box as a part of the cell blocks the fingers either way.
+        let cell = PickConfig {
+            obstacles: vec![table(), beside],
+            ..trusting
+        };
+        let err = plan_pick(&arm, &cell, &[grasp], &scene[..1], &HOME).unwrap_err();
+        assert!(err.to_string().contains("neighbour"), "{err}");
+    }
+
+    #[test]
+    fn a_blocked_joint_move_goes_around() {
+        let arm = Ur5e::default();
+        let free = PickConfig {
+            obstacles: vec![table()],
+            ..PickConfig::default()
+        };
+        let grasp = top_grasp(0.1, -0.45, 0.05);
+        let plan = plan_pick(&arm, &free, &[grasp], &[], &HOME).unwrap();
+        let Step::MoveJ { joints: q_pre, .. } = plan.steps[1] else {
+            panic!("pre-grasp")
+        };
+        // A small box where the wrist passes halfway along the straight move to the pre-grasp.
+        let mid: Joints = std::array::from_fn(|i| 0.5 * (HOME[i] + q_pre[i]));
+        let w = arm.forward_frames(&mid)[5].translation.vector;
+        let post = BoxObstacle {
+            name: "post".to_owned(),
+            world_from_box: Isometry3::translation(w.x, w.y, w.z),
+            half_extents_m: Vector3::new(0.03, 0.03, 0.03),
+        };
+        let config = PickConfig {
+            obstacles: vec![table(), post],
+            ..PickConfig::default()
+        };
+        let world = CollisionWorld::new(
+            config.world_from_base,
+            &config.obstacles,
+            config.arm_model.clone(),
+        );
+        assert!(
+            !world.segment_free(&arm, &HOME, &q_pre, 0.02),
+            "the straight move must be blocked"
+        );
+        let plan = plan_pick(&arm, &config, &[grasp], &[], &HOME).unwrap();
+        let joint_targets: Vec<Joints> = plan
+            .steps
+            .iter()
+            .filter_map(|s| match s {
+                Step::MoveJ { joints, .. } | Step::MoveL { joints, .. } => Some(*joints),
+                Step::Gripper { .. } => None,
+            })
+            .collect();
+        assert!(
+            plan.steps
+                .iter()
+                .any(|s| matches!(s, Step::MoveJ { name: "via", .. })),
+            "a detour"
+        );
+        let mut previous = HOME;
+        for (k, q) in joint_targets.iter().enumerate() {
+            // Joint moves are checked as straight joint segments; linear ones were sampled.
+            if matches!(
+                plan.steps
+                    .iter()
+                    .filter(|s| !matches!(s, Step::Gripper { .. }))
+                    .nth(k),
+                Some(Step::MoveJ { .. })
+            ) {
+                assert!(
+                    world.segment_free(&arm, &previous, q, 0.02),
+                    "segment {k} collides"
+                );
+            }
+            previous = *q;
+        }
+    }
+}
