@@ -144,14 +144,17 @@ fn plan_one(
             }
         };
         // Over the basket the tool's turn about the vertical does not matter:
-        // take the nearest quarter turn that is free of collisions.
+        // per quarter turn the nearest arm branch (shoulder, elbow, wrist)
+        // that is free of collisions, then the nearest quarter turn.
         let Some(q_drop) = [0.0, PI / 2.0, PI, -PI / 2.0]
             .iter()
             .filter_map(|yaw| {
                 let drop = config.world_from_drop * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), *yaw);
-                arm.inverse_nearest(&flange_for(&drop), &q_lift).ok()
+                arm.inverse_ranked(&flange_for(&drop), &q_lift)
+                    .ok()?
+                    .into_iter()
+                    .find(|q| world.collision(arm, q).is_none())
             })
-            .filter(|q| world.collision(arm, q).is_none())
             .min_by(|a, b| max_joint_move(&q_lift, a).total_cmp(&max_joint_move(&q_lift, b)))
         else {
             reason = "no collision-free pose over the basket".to_owned();
@@ -636,5 +639,60 @@ pub(crate) mod tests {
             }
             previous = *q;
         }
+    }
+
+    /// When the arm's nearest branch over the basket would hit something,
+    /// another branch (here the other elbow) is taken instead of refusing
+    /// the grasp.
+    #[test]
+    fn a_blocked_branch_over_the_basket_gives_way_to_another() {
+        let arm = Ur5e::default();
+        let free = PickConfig {
+            obstacles: vec![table()],
+            ..PickConfig::default()
+        };
+        let grasp = top_grasp(-0.35, -0.2, 0.05);
+        let drop_of = |plan: &PickPlan| {
+            plan.steps
+                .iter()
+                .find_map(|s| match s {
+                    Step::MoveJ {
+                        name: "over the basket",
+                        joints,
+                    } => Some(*joints),
+                    _ => None,
+                })
+                .expect("over the basket")
+        };
+        let q_drop = drop_of(&plan_pick(&arm, &free, &[grasp], &[], &HOME).unwrap());
+        // A post at the middle of that pose's forearm: every quarter turn's
+        // nearest branch keeps the forearm there.
+        let frames = arm.forward_frames(&q_drop);
+        let forearm = 0.5 * (frames[2].translation.vector + frames[3].translation.vector);
+        let mid = free.world_from_base * forearm;
+        let post = BoxObstacle {
+            name: "post".to_owned(),
+            world_from_box: Isometry3::translation(mid.x, mid.y, mid.z),
+            half_extents_m: Vector3::new(0.03, 0.03, 0.03),
+        };
+        let config = PickConfig {
+            obstacles: vec![table(), post],
+            ..PickConfig::default()
+        };
+        let world = CollisionWorld::new(
+            config.world_from_base,
+            &config.obstacles,
+            config.arm_model.clone(),
+        );
+        assert_eq!(world.collision(&arm, &q_drop), Some("post"));
+        let plan = plan_pick(&arm, &config, &[grasp], &[], &HOME).unwrap();
+        let q_other = drop_of(&plan);
+        assert_eq!(world.collision(&arm, &q_other), None);
+        let (p, r) = (arm.forward(&q_drop), arm.forward(&q_other));
+        assert!((p.translation.vector - r.translation.vector).norm() < 1e-9);
+        assert!(
+            (q_other[2] - q_drop[2]).abs() > 0.5,
+            "another elbow: {q_other:?} vs {q_drop:?}"
+        );
     }
 }

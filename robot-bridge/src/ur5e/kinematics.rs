@@ -198,9 +198,25 @@ impl Ur5e {
     /// most (they swing the whole arm) and the last wrist least; an error
     /// when none reaches.
     pub fn inverse_nearest(&self, base_from_flange: &Isometry3<f64>, current: &Joints) -> Result<Joints> {
+        self.inverse_ranked(base_from_flange, current)?
+            .into_iter()
+            .next()
+            .ok_or_else(|| {
+                let p = base_from_flange.translation.vector;
+                Error::Unreachable(format!(
+                    "no UR5e joint solution within the limits reaches ({:.3}, {:.3}, {:.3}) m",
+                    p.x, p.y, p.z
+                ))
+            })
+    }
+
+    /// Every solution within the joint limits, each joint taking the 2 pi
+    /// turn nearest to its current angle, closest to `current` first (as
+    /// [`Ur5e::inverse_nearest`] ranks them); empty when none reaches.
+    pub fn inverse_ranked(&self, base_from_flange: &Isometry3<f64>, current: &Joints) -> Result<Vec<Joints>> {
         check_joints("current", current)?;
         check_pose("base_from_flange", base_from_flange)?;
-        let mut best: Option<(f64, f64, Joints)> = None;
+        let mut ranked: Vec<(f64, f64, Joints)> = Vec::with_capacity(8);
         for q in self.inverse(base_from_flange, current[5]) {
             let mut candidate = [0.0; 6];
             let mut feasible = true;
@@ -223,21 +239,18 @@ impl Ur5e {
             let (largest, total) = moves
                 .zip(MOVE_WEIGHTS)
                 .fold((0.0f64, 0.0f64), |(m, s), (v, w)| (m.max(v), s + w * v));
-            let better = match &best {
-                None => true,
-                Some((m, s, _)) => total < *s - 1e-12 || ((total - *s).abs() <= 1e-12 && largest < *m),
-            };
-            if better {
-                best = Some((largest, total, candidate));
+            ranked.push((total, largest, candidate));
+        }
+        // The smaller weighted total first; among totals within 1e-12 of the
+        // smallest (mirror solutions), the smaller largest move leads.
+        ranked.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        if let Some(&(least, _, _)) = ranked.first() {
+            let ties = ranked.iter().take_while(|r| r.0 <= least + 1e-12).count();
+            if let Some(lead) = (0..ties).min_by(|&i, &j| ranked[i].1.total_cmp(&ranked[j].1)) {
+                ranked.swap(0, lead);
             }
         }
-        best.map(|(_, _, q)| q).ok_or_else(|| {
-            let p = base_from_flange.translation.vector;
-            Error::Unreachable(format!(
-                "no UR5e joint solution within the limits reaches ({:.3}, {:.3}, {:.3}) m",
-                p.x, p.y, p.z
-            ))
-        })
+        Ok(ranked.into_iter().map(|(_, _, q)| q).collect())
     }
 }
 
@@ -321,6 +334,30 @@ mod tests {
                 "joint {i}: {nearest:?} vs {q:?}"
             );
         }
+    }
+
+    /// Every branch within the limits, each reaching the pose, the nearest
+    /// first and the rest by their weighted move from `current`.
+    #[test]
+    fn ranked_solutions_start_with_the_nearest_and_all_reach_the_pose() {
+        let arm = Ur5e::default();
+        let q = [0.3, -1.2, 1.4, -1.6, -1.3, 0.7];
+        let target = arm.forward(&q);
+        let ranked = arm.inverse_ranked(&target, &q).unwrap();
+        assert_eq!(ranked.len(), 8, "{ranked:?}");
+        assert_eq!(ranked[0], arm.inverse_nearest(&target, &q).unwrap());
+        let cost = |s: &Joints| (0..6).map(|i| MOVE_WEIGHTS[i] * (s[i] - q[i]).abs()).sum::<f64>();
+        for pair in ranked.windows(2) {
+            assert!(cost(&pair[0]) <= cost(&pair[1]) + 1e-12, "{pair:?}");
+        }
+        for s in &ranked {
+            let reached = arm.forward(s);
+            assert!((reached.translation.vector - target.translation.vector).norm() < 1e-9);
+            assert!(reached.rotation.angle_to(&target.rotation) < 1e-9);
+            assert!((0..6).all(|i| s[i] >= arm.limits.lower[i] && s[i] <= arm.limits.upper[i]));
+        }
+        let far = Isometry3::translation(2.0, 0.0, 0.3);
+        assert!(arm.inverse_ranked(&far, &q).unwrap().is_empty());
     }
 
     #[test]
