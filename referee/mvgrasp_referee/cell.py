@@ -34,6 +34,9 @@ WORLD_FROM_BASE = (np.array([0.0, -0.62, 0.0]), -math.pi / 2)  # position, yaw
 BIN_CENTRE_M = (0.45, -0.47)
 BIN_INNER_HALF_M = 0.13
 BIN_WALL_M = (0.01, 0.09)  # thickness, height
+# The robot-bridge's basket reaches this high (m): what piles up in the bin
+# stands above its walls (`bin_top_m` in referee.json measures it).
+BIN_FILL_M = 0.25
 DROP_HEIGHT_M = 0.35
 AREA_HALF_M = 0.15  # objects are placed within this square around the origin
 # Out of the camera's way while the picture is taken: over the bin side, tool down.
@@ -354,11 +357,28 @@ def world_from_dh_base():
     return t
 
 
-def bin_box():
-    """The bin as the robot-bridge's basket obstacle: (centre, half extents)."""
+def bin_box(fill_m=BIN_FILL_M):
+    """The bin and what may pile up in it, `fill_m` high, as the
+    robot-bridge's basket obstacle: (centre, half extents)."""
     bx, by = BIN_CENTRE_M
     half = BIN_INNER_HALF_M + 2 * BIN_WALL_M[0]
-    return (bx, by, BIN_WALL_M[1] / 2), (half, half, BIN_WALL_M[1] / 2)
+    return (bx, by, fill_m / 2), (half, half, fill_m / 2)
+
+
+def bin_top(cell):
+    """The highest point (z, m) of the objects lying in the bin (0 when none):
+    each geom's bounding box turned into the world, so a little high."""
+    m, d = cell.model, cell.data
+    top = 0.0
+    for i, body in enumerate(cell.object_body_ids):
+        if not in_bin(cell.object_pose(i)[0]):
+            continue
+        for g in np.flatnonzero(m.geom_bodyid == body):
+            centre, half = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
+            rot = d.geom_xmat[g].reshape(3, 3)
+            z = d.geom_xpos[g][2] + rot[2] @ centre + np.abs(rot[2]) @ half
+            top = max(top, float(z))
+    return top
 
 
 def in_bin(position):

@@ -65,7 +65,11 @@ class Run:
                 continue  # the pads touching their own object
             if other in target_geoms and self.phase == "approach":
                 continue  # the hand meeting its object as it goes in: judged by the outcome
-            self.collisions.append((self.phase, self.m.geom(arm_geom).name, self.m.geom(other).name or "table"))
+            self.collisions.append((self.phase, self.m.geom(arm_geom).name, self._name(other)))
+
+    def _name(self, geom):
+        """A geom's name, else its body's (an object's convex pieces are unnamed)."""
+        return self.m.geom(geom).name or self.m.body(self.m.geom_bodyid[geom]).name or "world"
 
     def _target_geoms(self):
         if self.target is None:

@@ -39,6 +39,7 @@ class Planner:
         self.stub = rpc.GraspPlannerStub(self.channel)
         self.policy, self.min_quality, self.max_grasps = policy, min_quality, max_grasps
         self.timeout_s = timeout_s
+        self._model_info = None
         self.view_cascade = view_cascade
         self.approach_cone = None
         if approach_cone is not None:
@@ -47,13 +48,19 @@ class Planner:
                 raise ValueError(f"--approach-cone {approach_cone!r}: give AX,AY,AZ,HALF_DEG")
             self.approach_cone = values
 
+    def _info(self):
+        """The served model's GetModelInfo answer, asked once."""
+        if self._model_info is None:
+            self._model_info = self.stub.GetModelInfo(self.pb.GetModelInfoRequest(), timeout=self.timeout_s)
+        return self._model_info
+
     def model_info(self):
-        info = self.stub.GetModelInfo(self.pb.GetModelInfoRequest(), timeout=self.timeout_s)
+        info = self._info()
         return {"model_version": info.model_version, "backend": info.backend}
 
     def contract(self):
         """What the network reads: its input size, pixel size and normalisation."""
-        info = self.stub.GetModelInfo(self.pb.GetModelInfoRequest(), timeout=self.timeout_s)
+        info = self._info()
         return {"input_size_px": info.input_size_px, "pixel_size_m": info.pixel_size_m,
                 "normalisation": info.normalisation}
 

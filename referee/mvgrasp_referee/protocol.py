@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 
 from . import camera as cammod
+from . import cell as cellmod
 from . import executor, gripper, scenes
 from .planner import REFUSALS, bridge_scene
 
@@ -198,6 +199,7 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
     finally:
         cam.close()
     record["removed"] = len(removed)
+    record["bin_top_m"] = round(cellmod.bin_top(cell), 3)
     record["lost"] = sum(1 for i in initial if i not in removed and not scenes.on_table(cell, i))
     return record
 

@@ -279,6 +279,44 @@ class AttemptViewsTest(unittest.TestCase):
             self.assertEqual(held, 1.0 if row["outcome"] == "ok" else 0.0)
 
 
+class BinTest(unittest.TestCase):
+    def test_bin_top_is_the_highest_point_of_what_lies_in_the_bin(self):
+        body = objects.make_body(pools.HOUSEHOLD[0], np.random.default_rng(0))
+        top_of_body = max(float(np.max(p[:, 2])) for p in body.parts)
+        bx, by = cell.BIN_CENTRE_M
+        for position, in_bin in (((bx, by, 0.1), True), ((0.0, 0.0, 0.1), False)):
+            c = cell.build([body], [(position, (1.0, 0.0, 0.0, 0.0))])
+            mujoco.mj_forward(c.model, c.data)
+            top = cell.bin_top(c)
+            if in_bin:
+                # Each part's bounding box turned into the world: at or a little above the true top.
+                self.assertGreaterEqual(top, 0.1 + top_of_body - 1e-6)
+                self.assertLessEqual(top, 0.1 + top_of_body + 0.5 * float(np.max(body.extents_m)))
+            else:
+                self.assertEqual(top, 0.0)
+
+    def test_a_touch_names_the_object_not_the_table(self):
+        from mvgrasp_referee import executor  # noqa: PLC0415
+
+        body = objects.make_body(pools.HOUSEHOLD[0], np.random.default_rng(0))
+        c = cell.build([body], [((0.0, 0.0, 0.1), (1.0, 0.0, 0.0, 0.0))])
+        run = executor.Run(c, None)
+        part = next(g for g in range(c.model.ngeom) if c.model.geom_bodyid[g] == c.object_body_ids[0]
+                    and c.model.geom_contype[g])
+        self.assertEqual(c.model.geom(part).name, "")
+        self.assertEqual(run._name(part), "obj0")
+        self.assertEqual(run._name(c.table_geom), "table")
+
+    def test_the_bridge_keeps_out_of_the_bin_up_to_its_fill(self):
+        (_, _, bz), (_, _, hz) = cell.bin_box()
+        self.assertAlmostEqual(bz + hz, cell.BIN_FILL_M)
+        self.assertGreater(cell.BIN_FILL_M, cell.BIN_WALL_M[1])
+        toml = bridge.config_toml([0.0, 0.0, 0.2], bin_fill_m=0.2)
+        basket = next(line for line in toml.splitlines() if line.startswith("basket"))
+        self.assertIn("centre = [0.4500, -0.4700, 0.1000]", basket)
+        self.assertTrue(basket.endswith("0.1000] }"), basket)
+
+
 class ObjectsTest(unittest.TestCase):
     def test_bodies_have_parts_mass_and_sizes_as_stated(self):
         rng = np.random.default_rng(0)
