@@ -65,7 +65,7 @@ impl Default for ModelSettings {
     fn default() -> Self {
         Self {
             backend: BackendKind::Onnx,
-            path: PathBuf::from("models/mvgrasp-8.onnx"),
+            path: PathBuf::from("models/mvgrasp-9.onnx"),
             onnxruntime_library: None,
             device: Device::Cpu,
             intra_threads: 1,
