@@ -198,60 +198,80 @@ impl Ur5e {
     /// most (they swing the whole arm) and the last wrist least; an error
     /// when none reaches.
     pub fn inverse_nearest(&self, base_from_flange: &Isometry3<f64>, current: &Joints) -> Result<Joints> {
-        self.inverse_ranked(base_from_flange, current)?
-            .into_iter()
-            .next()
-            .ok_or_else(|| {
-                let p = base_from_flange.translation.vector;
-                Error::Unreachable(format!(
-                    "no UR5e joint solution within the limits reaches ({:.3}, {:.3}, {:.3}) m",
-                    p.x, p.y, p.z
-                ))
-            })
+        check_joints("current", current)?;
+        check_pose("base_from_flange", base_from_flange)?;
+        let solutions = self.inverse(base_from_flange, current[5]);
+        let moves = solutions.iter().filter_map(|q| self.branch_move(q, current));
+        nearest(moves).map(|m| m.joints).ok_or_else(|| {
+            let p = base_from_flange.translation.vector;
+            Error::Unreachable(format!(
+                "no UR5e joint solution within the limits reaches ({:.3}, {:.3}, {:.3}) m",
+                p.x, p.y, p.z
+            ))
+        })
     }
 
     /// Every solution within the joint limits, each joint taking the 2 pi
-    /// turn nearest to its current angle, closest to `current` first (as
-    /// [`Ur5e::inverse_nearest`] ranks them); empty when none reaches.
+    /// turn nearest to its current angle: [`Ur5e::inverse_nearest`]'s first,
+    /// the rest by their weighted move from `current`; empty when none
+    /// reaches.
     pub fn inverse_ranked(&self, base_from_flange: &Isometry3<f64>, current: &Joints) -> Result<Vec<Joints>> {
         check_joints("current", current)?;
         check_pose("base_from_flange", base_from_flange)?;
-        let mut ranked: Vec<(f64, f64, Joints)> = Vec::with_capacity(8);
-        for q in self.inverse(base_from_flange, current[5]) {
-            let mut candidate = [0.0; 6];
-            let mut feasible = true;
-            for i in 0..6 {
-                // The equivalent angle q + 2 pi k nearest to the current one, within the limits.
-                let nearest = [-2.0, -1.0, 0.0, 1.0, 2.0]
-                    .iter()
-                    .map(|k| q[i] + k * TAU)
-                    .filter(|v| *v >= self.limits.lower[i] && *v <= self.limits.upper[i])
-                    .min_by(|x, y| (x - current[i]).abs().total_cmp(&(y - current[i]).abs()));
-                match nearest {
-                    Some(v) => candidate[i] = v,
-                    None => feasible = false,
-                }
-            }
-            if !feasible {
-                continue;
-            }
-            let moves = (0..6).map(|i| (candidate[i] - current[i]).abs());
-            let (largest, total) = moves
-                .zip(MOVE_WEIGHTS)
-                .fold((0.0f64, 0.0f64), |(m, s), (v, w)| (m.max(v), s + w * v));
-            ranked.push((total, largest, candidate));
+        let mut ranked: Vec<BranchMove> = self
+            .inverse(base_from_flange, current[5])
+            .iter()
+            .filter_map(|q| self.branch_move(q, current))
+            .collect();
+        ranked.sort_by(|a, b| a.total.total_cmp(&b.total).then(a.largest.total_cmp(&b.largest)));
+        if let Some(lead) = nearest(ranked.iter().copied()) {
+            let at = ranked.iter().position(|m| m.joints == lead.joints).unwrap_or(0);
+            ranked.swap(0, at);
         }
-        // The smaller weighted total first; among totals within 1e-12 of the
-        // smallest (mirror solutions), the smaller largest move leads.
-        ranked.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
-        if let Some(&(least, _, _)) = ranked.first() {
-            let ties = ranked.iter().take_while(|r| r.0 <= least + 1e-12).count();
-            if let Some(lead) = (0..ties).min_by(|&i, &j| ranked[i].1.total_cmp(&ranked[j].1)) {
-                ranked.swap(0, lead);
-            }
-        }
-        Ok(ranked.into_iter().map(|(_, _, q)| q).collect())
+        Ok(ranked.into_iter().map(|m| m.joints).collect())
     }
+
+    /// One inverse solution `q` moved, joint by joint, to the 2 pi turn
+    /// nearest to `current` within the limits, with its move from `current`;
+    /// `None` when some joint has no turn within its limits.
+    fn branch_move(&self, q: &Joints, current: &Joints) -> Option<BranchMove> {
+        let mut joints = [0.0; 6];
+        for i in 0..6 {
+            joints[i] = [-2.0, -1.0, 0.0, 1.0, 2.0]
+                .iter()
+                .map(|k| q[i] + k * TAU)
+                .filter(|v| *v >= self.limits.lower[i] && *v <= self.limits.upper[i])
+                .min_by(|x, y| (x - current[i]).abs().total_cmp(&(y - current[i]).abs()))?;
+        }
+        let (largest, total) = (0..6)
+            .map(|i| (joints[i] - current[i]).abs())
+            .zip(MOVE_WEIGHTS)
+            .fold((0.0f64, 0.0f64), |(m, s), (v, w)| (m.max(v), s + w * v));
+        Some(BranchMove {
+            total,
+            largest,
+            joints,
+        })
+    }
+}
+
+/// An arm branch and how far it is from the current joints.
+#[derive(Clone, Copy)]
+struct BranchMove {
+    /// Weighted sum of the joint moves (rad, [`MOVE_WEIGHTS`]).
+    total: f64,
+    /// The largest single joint move (rad).
+    largest: f64,
+    joints: Joints,
+}
+
+/// The nearest branch: the smallest weighted total; among totals within
+/// 1e-12 of it (mirror solutions), the smallest largest move.
+fn nearest(moves: impl Iterator<Item = BranchMove> + Clone) -> Option<BranchMove> {
+    let least = moves.clone().map(|m| m.total).fold(f64::INFINITY, f64::min);
+    moves
+        .filter(|m| m.total <= least + 1e-12)
+        .min_by(|a, b| a.largest.total_cmp(&b.largest).then(a.total.total_cmp(&b.total)))
 }
 
 /// The largest single-joint difference between two joint vectors (rad).
@@ -358,6 +378,44 @@ mod tests {
         }
         let far = Isometry3::translation(2.0, 0.0, 0.3);
         assert!(arm.inverse_ranked(&far, &q).unwrap().is_empty());
+    }
+
+    /// The nearest solution leads the ranked list for poses seen from
+    /// other joints, the wrist-singular ones (mirror ties) included, and no
+    /// ranked branch moves less.
+    #[test]
+    fn the_nearest_leads_the_ranked_list_from_any_start() {
+        let arm = Ur5e::default();
+        let starts = [
+            [0.0, -FRAC_PI_2, FRAC_PI_2, -FRAC_PI_2, -FRAC_PI_2, 0.0],
+            [1.1, -0.8, 1.9, -2.6, 0.0, 2.0],
+            [-2.4, -2.0, -1.0, 0.4, 1.2, -3.0],
+        ];
+        let targets = [
+            [0.3, -1.2, 1.4, -1.6, -1.3, 0.7],
+            [-0.9, -1.7, 2.1, -0.4, 0.0, 0.5],
+            [2.8, -0.5, -1.8, 2.9, 2.2, -1.1],
+        ];
+        let mut compared = 0;
+        for start in &starts {
+            for q in &targets {
+                let target = arm.forward(q);
+                let ranked = arm.inverse_ranked(&target, start).unwrap();
+                let nearest = arm.inverse_nearest(&target, start).unwrap();
+                assert_eq!(ranked[0], nearest);
+                let cost = |s: &Joints| {
+                    (0..6)
+                        .map(|i| MOVE_WEIGHTS[i] * (s[i] - start[i]).abs())
+                        .sum::<f64>()
+                };
+                assert!(
+                    ranked.iter().all(|s| cost(&nearest) <= cost(s) + 1e-12),
+                    "{ranked:?}"
+                );
+                compared += 1;
+            }
+        }
+        assert_eq!(compared, 9);
     }
 
     #[test]
