@@ -38,6 +38,9 @@ def parse(argv):
     p.add_argument("--bin-fill-m", type=float, default=None, metavar="M",
                    help="how high the robot-bridge keeps the arm out of the bin, walls and what piles up in "
                         "them (m; default 0.25, the walls are 0.09)")
+    p.add_argument("--approach-clearance-m", type=float, default=None, metavar="M",
+                   help="the robot-bridge opens the fingers this much wider than a grasp's width "
+                        "(its pick.approach_clearance_m; default: the bridge's own)")
     p.add_argument("--rigid-tcp", action="store_true",
                    help="configure the robot-bridge without the 2F-140's fingertip travel (the ablation)")
     p.add_argument("--oracle", action="store_true",
@@ -87,7 +90,8 @@ def _init(args):
 
     probe = cell.build([], [])
     travel = [] if args.rigid_tcp else gripper.fingertip_travel(probe)
-    _worker["bridge"] = bridge.Bridge(args.bridge, gripper.tcp_in_flange(probe), travel, args.bin_fill_m)
+    _worker["bridge"] = bridge.Bridge(args.bridge, gripper.tcp_in_flange(probe), travel, args.bin_fill_m,
+                                        args.approach_clearance_m)
     _worker["planner"] = planner.OraclePlanner() if args.oracle else planner.Planner(
         args.server, args.policy, args.min_quality, args.max_grasps,
         view_cascade=False if args.no_view_cascade else None, approach_cone=args.approach_cone,
@@ -141,6 +145,8 @@ def main(argv=None):
     if not cell.BIN_WALL_M[1] <= args.bin_fill_m < cell.DROP_HEIGHT_M:
         raise SystemExit(f"referee: --bin-fill-m {args.bin_fill_m}: from the bin's walls ({cell.BIN_WALL_M[1]} m) "
                          f"to under the drop height ({cell.DROP_HEIGHT_M} m)")
+    if args.approach_clearance_m is not None and not 0.0 <= args.approach_clearance_m <= 0.1:
+        raise SystemExit(f"referee: --approach-clearance-m {args.approach_clearance_m}: from 0 to 0.1 m")
     os.makedirs(args.out, exist_ok=True)
     work = jobs(args)
     assets.robosuite_assets()
@@ -165,7 +171,8 @@ def main(argv=None):
             "max_grasps": args.max_grasps, "view_cascade": not args.no_view_cascade,
             "approach_cone": args.approach_cone, "seed": args.seed,
             "resolution": args.resolution, "noise": args.noise,
-            "oracle": args.oracle, "bin_fill_m": args.bin_fill_m, "workers": args.workers,
+            "oracle": args.oracle, "bin_fill_m": args.bin_fill_m,
+            "approach_clearance_m": args.approach_clearance_m, "workers": args.workers,
             "wall_s": time.perf_counter() - start,
             "command": "scripts/referee.sh " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))}
     table = report.write(args.out, meta, episodes)

@@ -26,16 +26,18 @@ def quat_xyzw(rotation):
     return [q[1], q[2], q[3], q[0]]
 
 
-def config_toml(tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_M):
+def config_toml(tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_M, approach_clearance_m=None):
     """The bridge's settings for this cell (robot-bridge/bridge.toml's keys);
     `fingertip_travel` as `gripper.fingertip_travel` gives it (empty: a rigid
-    TCP); the basket reaches `bin_fill_m` high."""
+    TCP); the basket reaches `bin_fill_m` high; the fingers open
+    `approach_clearance_m` wider than a grasp (None: the bridge's default)."""
     position, yaw = cellmod.WORLD_FROM_BASE
     base_q = [0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)]
     # Fingers close along the flange's y: the TCP's x (closing) is the flange's y.
     tcp_q = [0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4)]
     (bx, by, bz), (hx, hy, hz) = cellmod.bin_box(bin_fill_m)
     fmt = ", ".join
+    clearance = "" if approach_clearance_m is None else f"approach_clearance_m = {approach_clearance_m:.4f}\n"
     return f"""[robot]
 world_from_base = {{ position = [{fmt(f"{v:.6f}" for v in position)}], orientation = [{fmt(f"{v:.9f}" for v in base_q)}] }}
 flange_from_tcp = {{ position = [{fmt(f"{v:.6f}" for v in tcp_in_flange)}], orientation = [{fmt(f"{v:.9f}" for v in tcp_q)}] }}
@@ -44,17 +46,18 @@ fingertip_travel = [{fmt(f"[{w}, {d}]" for w, d in fingertip_travel)}]
 [pick]
 world_from_drop = {{ position = [{bx:.4f}, {by:.4f}, {cellmod.DROP_HEIGHT_M:.4f}], orientation = [1.0, 0.0, 0.0, 0.0] }}
 basket = {{ centre = [{bx:.4f}, {by:.4f}, {bz:.4f}], half_extents_m = [{hx:.4f}, {hy:.4f}, {hz:.4f}] }}
-"""
+{clearance}"""
 
 
 class Bridge:
     """A running `robot-bridge plan-jsonl` process."""
 
-    def __init__(self, binary, tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_M):
+    def __init__(self, binary, tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_M,
+                 approach_clearance_m=None):
         if not os.path.exists(binary):
             raise FileNotFoundError(f"{binary}: build it with `cargo build --release -p mvgrasp-robot-bridge`")
         self._config = tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False)
-        self._config.write(config_toml(tcp_in_flange, fingertip_travel, bin_fill_m))
+        self._config.write(config_toml(tcp_in_flange, fingertip_travel, bin_fill_m, approach_clearance_m))
         self._config.close()
         self.process = subprocess.Popen([binary, "plan-jsonl", "--config", self._config.name],
                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)

@@ -319,6 +319,17 @@ class BinTest(unittest.TestCase):
         self.assertIn("centre = [0.4500, -0.4700, 0.1000]", basket)
         self.assertTrue(basket.endswith("0.1000] }"), basket)
 
+    def test_the_bridge_takes_the_approach_clearance_it_is_given(self):
+        self.assertNotIn("approach_clearance_m", bridge.config_toml([0.0, 0.0, 0.2]))
+        toml = bridge.config_toml([0.0, 0.0, 0.2], approach_clearance_m=0.005)
+        self.assertIn("approach_clearance_m = 0.0050\n", toml)
+        c = cell.build([], [])
+        b = bridge.Bridge(bridge_binary(), gripper.tcp_in_flange(c), approach_clearance_m=0.005)
+        try:
+            self.assertEqual(len(b.fk([0.0] * 6)), 4, "the bridge accepts the key")
+        finally:
+            b.close()
+
 
 class ObjectsTest(unittest.TestCase):
     def test_bodies_have_parts_mass_and_sizes_as_stated(self):

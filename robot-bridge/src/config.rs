@@ -77,6 +77,9 @@ pub struct PickSection {
     pub pregrasp_m: f64,
     /// Lift after closing (m).
     pub lift_m: f64,
+    /// The fingers open this much wider than the grasp's width for the
+    /// approach (m; `PickConfig::approach_clearance_m`).
+    pub approach_clearance_m: f64,
     /// TCP pose over the basket where the object is released (world).
     pub world_from_drop: PoseConfig,
     /// The basket, an obstacle for the arm.
@@ -176,6 +179,7 @@ impl Default for BridgeConfig {
             pick: PickSection {
                 pregrasp_m: pick.pregrasp_m,
                 lift_m: pick.lift_m,
+                approach_clearance_m: pick.approach_clearance_m,
                 world_from_drop: PoseConfig {
                     position: [0.45, 0.45, 0.3],
                     orientation: DOWN,
@@ -272,6 +276,13 @@ impl BridgeConfig {
             }
         }
         self.approach_cone()?;
+        let clearance = self.pick.approach_clearance_m;
+        if !(clearance.is_finite() && (0.0..=0.1).contains(&clearance)) {
+            return Err(bad(
+                "pick.approach_clearance_m",
+                format!("{clearance} is not in [0, 0.1]"),
+            ));
+        }
         let wait = self.recovery.unlock_after_s;
         if !(wait.is_finite() && (0.0..=60.0).contains(&wait)) {
             return Err(bad(
@@ -305,6 +316,7 @@ impl BridgeConfig {
             fingertip_travel: self.fingertip_travel()?,
             pregrasp_m: self.pick.pregrasp_m,
             lift_m: self.pick.lift_m,
+            approach_clearance_m: self.pick.approach_clearance_m,
             world_from_drop: self.pick.world_from_drop.isometry("pick.world_from_drop")?,
             joint_speed: self.robot.joint_speed,
             joint_accel: self.robot.joint_accel,
@@ -397,6 +409,10 @@ mod tests {
                 "pick.world_from_drop",
             ),
             ("[recovery]\nunlock_after_s = -1.0\n", "recovery.unlock_after_s"),
+            (
+                "[pick]\napproach_clearance_m = -0.01\n",
+                "pick.approach_clearance_m",
+            ),
             (
                 "[planner]\napproach_cone = { axis = [0.0, 0.0, 0.0], half_angle_deg = 60.0 }\n",
                 "planner.approach_cone",

@@ -64,6 +64,10 @@ pub struct PickConfig {
     /// service's `decode.opening_margin_m`): the pads meet the object at
     /// `width_m` less this, and that is where the fingertips must be at the grasp.
     pub opening_margin_m: f64,
+    /// The fingers open this much wider than the grasp's `width_m` for the
+    /// approach, within the 2F-140's 14 cm stroke; the collision checks use
+    /// that opening for the whole pick (the fingers are never wider).
+    pub approach_clearance_m: f64,
     /// Pre-grasp distance back along the approach (m).
     pub pregrasp_m: f64,
     /// Lift height after closing (m, world up).
@@ -110,6 +114,7 @@ impl Default for PickConfig {
             flange_from_tcp: Isometry3::translation(0.0, 0.0, 0.233),
             fingertip_travel: Vec::new(),
             opening_margin_m: mvgrasp_core::DecodeConfig::default().opening_margin_m,
+            approach_clearance_m: 0.02,
             pregrasp_m: 0.10,
             lift_m: 0.15,
             world_from_drop: Isometry3::from_parts(
@@ -178,6 +183,11 @@ pub struct PickPlan {
 }
 
 impl PickConfig {
+    /// How far the fingers open for the approach to a grasp `width_m` wide.
+    pub fn approach_opening(&self, width_m: f64) -> f64 {
+        (width_m + self.approach_clearance_m).clamp(0.0, 0.14)
+    }
+
     /// Where the fingertips are along the approach from the calibrated TCP
     /// at `opening_m` (m): `fingertip_travel` interpolated, held at its ends.
     pub fn fingertip_along(&self, opening_m: f64) -> f64 {

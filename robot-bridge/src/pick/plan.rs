@@ -30,7 +30,7 @@ pub fn plan_pick(
             .enumerate()
             .filter(|(i, _)| Some(*i) != grasp.object)
             .map(|(_, o)| o);
-        let opening = approach_opening(grasp.width_m);
+        let opening = config.approach_opening(grasp.width_m);
         let world = CollisionWorld::new(
             config.world_from_base,
             &config.obstacles,
@@ -57,13 +57,6 @@ pub fn plan_pick(
         }
     }
     Err(last_error)
-}
-
-/// How far the fingers open for the approach to a grasp `width_m` wide:
-/// 2 cm more, within the 2F-140's 14 cm stroke. The collision checks use it
-/// for the whole pick (the fingers are never wider).
-fn approach_opening(width_m: f64) -> f64 {
-    (width_m + 0.02).clamp(0.0, 0.14)
 }
 
 /// The pick of one grasp; `near` is `world` as the approach and the lift
@@ -184,7 +177,7 @@ fn plan_one(
         let mut steps = vec![Step::Gripper {
             name: "open before approach",
             close: false,
-            width_m: approach_opening(grasp.width_m),
+            width_m: config.approach_opening(grasp.width_m),
         }];
         steps.extend(via(&to_pre, "pre-grasp"));
         steps.push(Step::MoveL {
@@ -380,6 +373,34 @@ pub(crate) mod tests {
         assert_eq!(script.matches("movej(").count(), 3);
         assert_eq!(script.matches("movel(").count(), 2);
         assert!(script.ends_with("end\n"));
+    }
+
+    /// The fingers open the grasp's width plus `approach_clearance_m`,
+    /// never past the 14 cm stroke.
+    #[test]
+    fn the_fingers_open_the_grasp_width_plus_the_clearance() {
+        let arm = Ur5e::default();
+        let opening = |clearance: f64, width_m: f64| {
+            let config = PickConfig {
+                approach_clearance_m: clearance,
+                ..PickConfig::default()
+            };
+            let mut grasp = top_grasp(0.1, -0.45, 0.05);
+            grasp.width_m = width_m;
+            let plan = plan_pick(&arm, &config, &[grasp], &[], &HOME).unwrap();
+            match plan.steps[0] {
+                Step::Gripper {
+                    name: "open before approach",
+                    close: false,
+                    width_m,
+                } => width_m,
+                ref other => panic!("{other:?}"),
+            }
+        };
+        assert!((opening(0.02, 0.05) - 0.07).abs() < 1e-12);
+        assert!((opening(0.0, 0.05) - 0.05).abs() < 1e-12);
+        assert!((opening(0.005, 0.08) - 0.085).abs() < 1e-12);
+        assert_eq!(opening(0.02, 0.13), 0.14);
     }
 
     #[test]
