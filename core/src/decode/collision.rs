@@ -149,19 +149,21 @@ pub fn hand_collision(
         .map(Collision::Object)
 }
 
-/// `object`'s points inside `b`, in the grasp frame (f32); none when `b`
-/// does not reach the object's box.
-pub(super) fn points_inside(
+/// `f` of each of `object`'s points inside `b`, in the grasp frame (f32);
+/// none when `b` does not reach the object's box.
+pub(super) fn points_inside<T>(
     world_from_grasp: &Isometry3<f64>,
     b: &GraspBox,
     object: &Obstacle<'_>,
-) -> Vec<[f32; 3]> {
+    f: impl FnMut([f32; 3]) -> T,
+) -> Vec<T> {
     let Some(seen) = SeenFromGrasp::new(world_from_grasp, &[*b], object) else {
         return Vec::new();
     };
     let (lo, hi) = (b.lo.map(|v| v as f32), b.hi.map(|v| v as f32));
     seen.points(object)
         .filter(|g| (0..3).all(|k| g[k] >= lo[k] && g[k] <= hi[k]))
+        .map(f)
         .collect()
 }
 

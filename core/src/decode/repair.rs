@@ -55,19 +55,11 @@ pub fn fit_opening(
         ),
         hi: Vector3::new(gripper.max_width_m, half_pad_y, 0.0),
     };
-    let mut across: Vec<f32> = points_inside(world_from_grasp, &paths, object)
-        .iter()
-        .map(|g| g[0])
-        .collect();
+    let mut across: Vec<f32> = points_inside(world_from_grasp, &paths, object, |g| g[0]);
     if across.len() < hand.min_points.max(1) {
         return None;
     }
-    across.sort_by(f32::total_cmp);
-    let skip = hand.min_points.saturating_sub(1).min((across.len() - 1) / 2);
-    let (lo, hi) = (
-        f64::from(across[skip]),
-        f64::from(across[across.len() - 1 - skip]),
-    );
+    let (lo, hi) = trimmed_range(&mut across, hand.min_points.saturating_sub(1));
     let middle = (lo + hi) / 2.0;
     let width = (hi - lo + 2.0 * hand.fit_clearance_m).max(width_m);
     if width > gripper.max_width_m || middle.abs() > width_m / 2.0 {
@@ -75,6 +67,23 @@ pub fn fit_opening(
     }
     let moved = world_from_grasp * nalgebra::Translation3::new(middle, 0.0, 0.0);
     Some((moved, width))
+}
+
+/// The `skip`-th smallest and `skip`-th largest of `values` (0: the
+/// extremes; `skip` is held to the middle), by two selections rather than
+/// a sort; `values` is reordered. `values` must not be empty.
+fn trimmed_range(values: &mut [f32], skip: usize) -> (f64, f64) {
+    let last = values.len() - 1;
+    let skip = skip.min(last / 2);
+    let (_, &mut lo, upper) = values.select_nth_unstable_by(skip, f32::total_cmp);
+    let hi = if last - skip == skip {
+        lo
+    } else {
+        *upper
+            .select_nth_unstable_by(last - 2 * skip - 1, f32::total_cmp)
+            .1
+    };
+    (f64::from(lo), f64::from(hi))
 }
 
 /// The grasp turned about its approach axis away from a neighbour: for
@@ -145,10 +154,9 @@ pub fn contact_slopes(
 ) -> [Option<f64>; 2] {
     let open = widen(width_m, hand.opening_clearance_m, gripper);
     let between = gap_box(open, 0.0, 0.0, gripper.finger_depth_m, gripper);
-    let inside: Vec<Vector3<f64>> = points_inside(world_from_grasp, &between, object)
-        .iter()
-        .map(|g| Vector3::new(f64::from(g[0]), f64::from(g[1]), f64::from(g[2])))
-        .collect();
+    let inside: Vec<Vector3<f64>> = points_inside(world_from_grasp, &between, object, |g| {
+        Vector3::new(f64::from(g[0]), f64::from(g[1]), f64::from(g[2]))
+    });
     [-1.0, 1.0].map(|side: f64| {
         let nearest = inside
             .iter()
@@ -193,6 +201,31 @@ mod tests {
     use super::*;
     use crate::decode::collision::{Collision, hand_collision};
     use crate::decode::test_support::*;
+
+    /// The selections give what sorting gives: the `skip`-th value from
+    /// each end, `skip` held to the middle, duplicates included.
+    #[test]
+    fn trimmed_range_matches_a_sort() {
+        let mut state = 7u32;
+        let mut next = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 24) as f32 / 16.0 - 8.0
+        };
+        for len in 1..40 {
+            for skip in [0, 1, 2, 3, 7, 19, 25, 100] {
+                let values: Vec<f32> = (0..len).map(|_| next()).collect();
+                let mut sorted = values.clone();
+                sorted.sort_by(f32::total_cmp);
+                let s = skip.min((len - 1) / 2);
+                let expected = (f64::from(sorted[s]), f64::from(sorted[len - 1 - s]));
+                assert_eq!(
+                    trimmed_range(&mut values.clone(), skip),
+                    expected,
+                    "{values:?} skip {skip}"
+                );
+            }
+        }
+    }
 
     /// `query` with the default gripper and hand on `points` (world frame)
     /// as one object framed by the identity, its box the 2 m cube.
