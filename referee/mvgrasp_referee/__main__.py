@@ -41,6 +41,9 @@ def parse(argv):
     p.add_argument("--approach-clearance-m", type=float, default=None, metavar="M",
                    help="the robot-bridge opens the fingers this much wider than a grasp's width "
                         "(its pick.approach_clearance_m; default: the bridge's own)")
+    p.add_argument("--close-speed-m-s", type=float, default=None, metavar="V",
+                   help="how fast the pads close (m/s of the gap; default 0.14, the robot-bridge's speed "
+                        "register on the 2F-140; 0: the servo slams them shut, as before 2026-11-29)")
     p.add_argument("--rigid-tcp", action="store_true",
                    help="configure the robot-bridge without the 2F-140's fingertip travel (the ablation)")
     p.add_argument("--oracle", action="store_true",
@@ -86,8 +89,9 @@ _worker = {}
 
 
 def _init(args):
-    from . import bridge, cell, gripper, planner  # noqa: PLC0415
+    from . import bridge, cell, executor, gripper, planner  # noqa: PLC0415
 
+    executor.CLOSE_SPEED_M_S = args.close_speed_m_s
     probe = cell.build([], [])
     travel = [] if args.rigid_tcp else gripper.fingertip_travel(probe)
     _worker["bridge"] = bridge.Bridge(args.bridge, gripper.tcp_in_flange(probe), travel, args.bin_fill_m,
@@ -145,6 +149,12 @@ def main(argv=None):
     if not cell.BIN_WALL_M[1] <= args.bin_fill_m < cell.DROP_HEIGHT_M:
         raise SystemExit(f"referee: --bin-fill-m {args.bin_fill_m}: from the bin's walls ({cell.BIN_WALL_M[1]} m) "
                          f"to under the drop height ({cell.DROP_HEIGHT_M} m)")
+    if args.close_speed_m_s is None:
+        from . import executor  # noqa: PLC0415
+
+        args.close_speed_m_s = executor.CLOSE_SPEED_M_S
+    if not 0.0 <= args.close_speed_m_s <= 5.0:
+        raise SystemExit(f"referee: --close-speed-m-s {args.close_speed_m_s}: from 0 (no ramp) to 5 m/s")
     if args.approach_clearance_m is not None and not 0.0 <= args.approach_clearance_m <= 0.1:
         raise SystemExit(f"referee: --approach-clearance-m {args.approach_clearance_m}: from 0 to 0.1 m")
     os.makedirs(args.out, exist_ok=True)
@@ -172,7 +182,8 @@ def main(argv=None):
             "approach_cone": args.approach_cone, "seed": args.seed,
             "resolution": args.resolution, "noise": args.noise,
             "oracle": args.oracle, "bin_fill_m": args.bin_fill_m,
-            "approach_clearance_m": args.approach_clearance_m, "workers": args.workers,
+            "approach_clearance_m": args.approach_clearance_m, "close_speed_m_s": args.close_speed_m_s,
+            "workers": args.workers,
             "wall_s": time.perf_counter() - start,
             "command": "scripts/referee.sh " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))}
     table = report.write(args.out, meta, episodes)

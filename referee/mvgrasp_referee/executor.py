@@ -26,7 +26,11 @@ from . import gripper
 JOINT_SPEED = 0.6  # rad/s, peak (the robot-bridge's default joint_speed)
 TOOL_SPEED = 0.10  # m/s
 SETTLE_S = 0.25
-CLOSE_MAX_S = 1.5
+# How fast the pads close (m/s of the gap): the 2F-140 closes at 30-250 mm/s
+# over its speed register 0-255, and the robot-bridge sends 128. Without the
+# ramp (0) the position servo slams the pads shut in about 20 ms (5 m/s).
+CLOSE_SPEED_M_S = 0.14
+CLOSE_MAX_S = 1.5  # after the ramp
 SHAKE = (0.25, 2, 2.0)  # wrist 3 amplitude (rad), cycles, Hz
 HELD_LIFT_M = 0.05  # an object held after a lift is this much above where it was
 
@@ -109,8 +113,19 @@ class Run:
         gripper.set_command(self.cell, gripper.command_for_width(table, min(width_m, 0.14)))
         return self.step(int(0.6 / cellmod.TIMESTEP_S))
 
-    def close(self):
-        """Closes until the knuckle stops moving (or CLOSE_MAX_S)."""
+    def close(self, table):
+        """Closes the pads at `CLOSE_SPEED_M_S` (the command ramps down the
+        gap table from the current opening; the pads stop on an object
+        while the command goes on, so the squeeze builds to its limit), then
+        until the knuckle stops moving (or CLOSE_MAX_S)."""
+        if CLOSE_SPEED_M_S > 0:
+            gap = gripper.pad_gap(self.cell)
+            steps = int(gap / CLOSE_SPEED_M_S / cellmod.TIMESTEP_S)
+            for k in range(1, steps + 1):
+                width = gap * (1 - k / steps)
+                gripper.set_command(self.cell, gripper.command_for_width(table, width))
+                if not self.step():
+                    return False
         gripper.set_command(self.cell, gripper.CLOSED_RAD)
         still, last = 0, gripper.knuckle(self.cell)
         for _ in range(int(CLOSE_MAX_S / cellmod.TIMESTEP_S)):
@@ -179,7 +194,7 @@ def execute(cell, plan_steps, target, gap_table):
                 return "timeout", _details(run, picked)
         elif kind == "gripper" and step["close"]:
             run.phase = "close"
-            if not run.close():
+            if not run.close(gap_table):
                 return "timeout", _details(run, picked)
             closed = True
             if gripper.pad_gap(cell) < 0.002:

@@ -67,6 +67,20 @@ def fmt_rate(k, n, ci):
     return f"{k / n:.2f} ({ci[0]:.2f}-{ci[1]:.2f})"
 
 
+def _cell_settings(meta):
+    """The cell's settings a run records, as a clause (runs before they were
+    recorded have none)."""
+    parts = []
+    if meta.get("close_speed_m_s") is not None:
+        speed = meta["close_speed_m_s"]
+        parts.append(f"pads closing at {speed} m/s" if speed > 0 else "pads slammed shut (no ramp)")
+    if meta.get("approach_clearance_m") is not None:
+        parts.append(f"fingers opened {meta['approach_clearance_m']} m wider than the grasp")
+    if meta.get("bin_fill_m") is not None:
+        parts.append(f"the bridge's basket {meta['bin_fill_m']} m high")
+    return "; " + ", ".join(parts) if parts else ""
+
+
 def markdown(meta, table):
     lines = [
         "# Referee run",
@@ -75,8 +89,8 @@ def markdown(meta, table):
         f"min_quality {meta['min_quality']}, max_grasps {meta['max_grasps']}"
         f"{'' if meta.get('view_cascade', True) else ', no view cascade'}"
         f"{', approach cone ' + meta['approach_cone'] if meta.get('approach_cone') else ''}. Suite `{meta['suite']}`, "
-        f"seed {meta['seed']}, {meta['resolution']} depth{' with noise' if meta['noise'] else ''}. "
-        f"Command: `{meta['command']}`.",
+        f"seed {meta['seed']}, {meta['resolution']} depth{' with noise' if meta['noise'] else ''}"
+        f"{_cell_settings(meta)}. Command: `{meta['command']}`.",
         "",
         "Success = attempts whose object reached the bin / attempts (95% Wilson interval); cleared = objects "
         "in the bin / objects at the start. Unreachable grasps are counted apart (not attempts): the robot-bridge "
