@@ -16,8 +16,50 @@ use std::hint::black_box;
 use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use mvgrasp_core::{Finished, GraspMaps, Plan, Planner};
+use mvgrasp_core::{GraspMaps, GraspNet, ModelContract, Planner, ViewBatch};
 use mvgrasp_server::{Overrides, Settings, backend, convert};
+
+/// The network, each call's maps kept (one entry per cascade round).
+struct Recording<'a> {
+    net: &'a mut dyn GraspNet,
+    kept: Vec<GraspMaps>,
+}
+
+impl GraspNet for Recording<'_> {
+    fn contract(&self) -> &ModelContract {
+        self.net.contract()
+    }
+
+    fn infer(&mut self, batch: &ViewBatch) -> mvgrasp_core::Result<GraspMaps> {
+        let maps = self.net.infer(batch)?;
+        self.kept.push(maps.clone());
+        Ok(maps)
+    }
+}
+
+/// Recorded maps given back round by round, in place of the network.
+struct Replay<'a> {
+    contract: &'a ModelContract,
+    kept: &'a [GraspMaps],
+    round: usize,
+}
+
+impl GraspNet for Replay<'_> {
+    fn contract(&self) -> &ModelContract {
+        self.contract
+    }
+
+    fn infer(&mut self, batch: &ViewBatch) -> mvgrasp_core::Result<GraspMaps> {
+        let maps = &self.kept[self.round];
+        assert_eq!(
+            maps.len, batch.len,
+            "round {} asks for other views than were recorded",
+            self.round
+        );
+        self.round += 1;
+        Ok(maps.clone())
+    }
+}
 
 fn sample_frame(c: &mut Criterion) {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -34,52 +76,45 @@ fn sample_frame(c: &mut Criterion) {
             return;
         }
     };
-    let planner = Planner::new(settings.planner_config(), net.contract().clone()).expect("planner");
+    let contract = net.contract().clone();
+    let planner = Planner::new(settings.planner_config(), contract.clone()).expect("planner");
     let scene = mvgrasp_client::scene::SceneFiles::load_depth(
         &repo.join("samples/table6/depth.png"),
         &repo.join("samples/table6/camera.json"),
     )
     .expect("sample frame");
     let request = scene.request();
-
-    // One plan through the network, each round's maps kept.
-    let plan_with = |maps_of_round: &mut dyn FnMut(usize, &mvgrasp_core::ViewBatch) -> GraspMaps| -> Plan {
+    // What the service does with the request, the network's part given by `rounds`.
+    let plan = |rounds: &mut dyn GraspNet| {
         let scene = convert::scene_of(&request, &settings.limits).expect("scene");
         let options = convert::options_of(&request, &settings.defaults).expect("options");
-        let mut prepared = planner.prepare(&scene, &options).expect("prepare");
-        for round in 0.. {
-            let maps = maps_of_round(round, prepared.batch());
-            match planner.finish_or_cascade(prepared, &maps).expect("finish") {
-                Finished::Plan(plan) => return *plan,
-                Finished::More(next) => prepared = *next,
-            }
-        }
-        unreachable!("the cascade ends")
+        planner.plan(&scene, &options, rounds).expect("plan")
     };
-    let mut recorded: Vec<GraspMaps> = Vec::new();
-    let plan = plan_with(&mut |_, batch| {
-        let maps = net.infer(batch).expect("network");
-        recorded.push(maps.clone());
-        maps
-    });
-    let views: Vec<usize> = recorded.iter().map(|m| m.len).collect();
+
+    // One plan through the network, each round's maps kept.
+    let mut recording = Recording {
+        net: net.as_mut(),
+        kept: Vec::new(),
+    };
+    let first = plan(&mut recording);
+    let kept = recording.kept;
+    let views: Vec<usize> = kept.iter().map(|m| m.len).collect();
     eprintln!(
         "sample frame: {} objects, {} grasps, network rounds of {views:?} views, stages (ms) {:?}",
-        plan.objects.len(),
-        plan.grasps.len(),
-        plan.timings
+        first.objects.len(),
+        first.grasps.len(),
+        first.timings
     );
-    let replay = |round: usize, batch: &mvgrasp_core::ViewBatch| {
-        let maps = &recorded[round];
-        assert_eq!(
-            maps.len, batch.len,
-            "round {round} asks for other views than were recorded"
-        );
-        maps.clone()
-    };
     let mut group = c.benchmark_group("sample_frame_table6");
     group.bench_function("cpu_stages_replayed_network", |b| {
-        b.iter(|| plan_with(&mut |round, batch| replay(round, black_box(batch))))
+        b.iter(|| {
+            let mut replay = Replay {
+                contract: &contract,
+                kept: &kept,
+                round: 0,
+            };
+            black_box(plan(&mut replay))
+        })
     });
     group.finish();
 }
