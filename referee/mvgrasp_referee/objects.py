@@ -12,6 +12,7 @@ longest axis, inside the object. The planner cannot see it.
 
 import hashlib
 import os
+import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
@@ -118,11 +119,27 @@ def load(spec):
         parts = _decompose(v, faces)
     else:
         parts = [p * spec.scale * factor - centre for p in parts]
-    os.makedirs(CACHE, exist_ok=True)
-    tmp = cached + ".tmp.npz"
-    np.savez(tmp, vertices=v, faces=faces, count=len(parts), **{f"part{i}": p for i, p in enumerate(parts)})
-    os.replace(tmp, cached)
+    save_atomic(cached, vertices=v, faces=faces, count=len(parts), **{f"part{i}": p for i, p in enumerate(parts)})
     return v, faces, parts
+
+
+def save_atomic(path, **arrays):
+    """`np.savez` to `path` through a temporary file of this writer's own.
+
+    Workers that meet the same uncached object decompose it side by side;
+    each writes its own temporary file and the last rename wins (same
+    content), so no worker renames another's file from under it.
+    """
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), prefix=os.path.basename(path) + ".", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
 
 
 def _hull_volume(points):

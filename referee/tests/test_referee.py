@@ -362,6 +362,29 @@ class ObjectsTest(unittest.TestCase):
         mug = objects.make_body(pools.HOUSEHOLD[0], rng)
         self.assertAlmostEqual(float(np.max(mug.extents_m)), 0.12, places=6)
 
+    def test_cache_writers_that_overlap_both_land(self):
+        # Two workers decomposing the same object: the second writes and
+        # renames while the first is between its write and its rename.
+        import tempfile  # noqa: PLC0415
+        from unittest import mock  # noqa: PLC0415
+
+        real_replace = os.replace
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "parts", "thing.npz")
+
+            def interleaved(src, dst):
+                interleaved.calls += 1
+                if interleaved.calls == 1:
+                    objects.save_atomic(path, count=2)
+                real_replace(src, dst)
+
+            interleaved.calls = 0
+            with mock.patch.object(objects.os, "replace", interleaved):
+                objects.save_atomic(path, count=1)
+            self.assertEqual(interleaved.calls, 2)
+            self.assertEqual(int(np.load(path)["count"]), 1)
+            self.assertEqual(os.listdir(os.path.dirname(path)), ["thing.npz"])
+
 
 if __name__ == "__main__":
     unittest.main()
