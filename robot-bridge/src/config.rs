@@ -77,6 +77,10 @@ pub struct PickSection {
     pub pregrasp_m: f64,
     /// Lift after closing (m).
     pub lift_m: f64,
+    /// The lift leans towards the base, up to this angle from the vertical
+    /// (degrees, 0-60), where straight up is out of reach
+    /// (`PickConfig::max_lift_tilt_deg`).
+    pub max_lift_tilt_deg: f64,
     /// The fingers open this much wider than the grasp's width for the
     /// approach (m; `PickConfig::approach_clearance_m`).
     pub approach_clearance_m: f64,
@@ -179,6 +183,7 @@ impl Default for BridgeConfig {
             pick: PickSection {
                 pregrasp_m: pick.pregrasp_m,
                 lift_m: pick.lift_m,
+                max_lift_tilt_deg: pick.max_lift_tilt_deg,
                 approach_clearance_m: pick.approach_clearance_m,
                 world_from_drop: PoseConfig {
                     position: [0.45, 0.45, 0.3],
@@ -276,19 +281,14 @@ impl BridgeConfig {
             }
         }
         self.approach_cone()?;
-        let clearance = self.pick.approach_clearance_m;
-        if !(clearance.is_finite() && (0.0..=0.1).contains(&clearance)) {
-            return Err(bad(
-                "pick.approach_clearance_m",
-                format!("{clearance} is not in [0, 0.1]"),
-            ));
-        }
-        let wait = self.recovery.unlock_after_s;
-        if !(wait.is_finite() && (0.0..=60.0).contains(&wait)) {
-            return Err(bad(
-                "recovery.unlock_after_s",
-                format!("{wait} is not in [0, 60]"),
-            ));
+        for (field, value, max) in [
+            ("pick.approach_clearance_m", self.pick.approach_clearance_m, 0.1),
+            ("pick.max_lift_tilt_deg", self.pick.max_lift_tilt_deg, 60.0),
+            ("recovery.unlock_after_s", self.recovery.unlock_after_s, 60.0),
+        ] {
+            if !(value.is_finite() && (0.0..=max).contains(&value)) {
+                return Err(bad(field, format!("{value} is not in [0, {max}]")));
+            }
         }
         let b = &self.pick.basket;
         if !(b.centre.iter().all(|v| v.is_finite())
@@ -316,6 +316,7 @@ impl BridgeConfig {
             fingertip_travel: self.fingertip_travel()?,
             pregrasp_m: self.pick.pregrasp_m,
             lift_m: self.pick.lift_m,
+            max_lift_tilt_deg: self.pick.max_lift_tilt_deg,
             approach_clearance_m: self.pick.approach_clearance_m,
             world_from_drop: self.pick.world_from_drop.isometry("pick.world_from_drop")?,
             joint_speed: self.robot.joint_speed,
@@ -409,6 +410,8 @@ mod tests {
                 "pick.world_from_drop",
             ),
             ("[recovery]\nunlock_after_s = -1.0\n", "recovery.unlock_after_s"),
+            ("[recovery]\nunlock_after_s = nan\n", "recovery.unlock_after_s"),
+            ("[pick]\nmax_lift_tilt_deg = 75.0\n", "pick.max_lift_tilt_deg"),
             (
                 "[pick]\napproach_clearance_m = -0.01\n",
                 "pick.approach_clearance_m",

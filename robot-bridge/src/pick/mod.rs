@@ -72,6 +72,10 @@ pub struct PickConfig {
     pub pregrasp_m: f64,
     /// Lift height after closing (m, world up).
     pub lift_m: f64,
+    /// Where a straight-up lift is out of the arm's reach, the lift leans
+    /// towards the base in 15 degree steps up to this angle from the
+    /// vertical, rising the same `lift_m` (0: straight up only).
+    pub max_lift_tilt_deg: f64,
     /// TCP pose above the basket where the object is released (world).
     pub world_from_drop: Isometry3<f64>,
     /// Joint speed (rad/s) and acceleration (rad/s^2) for joint moves.
@@ -117,6 +121,7 @@ impl Default for PickConfig {
             approach_clearance_m: 0.02,
             pregrasp_m: 0.10,
             lift_m: 0.15,
+            max_lift_tilt_deg: 45.0,
             world_from_drop: Isometry3::from_parts(
                 Translation3::new(0.0, -0.45, 0.35),
                 UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
@@ -136,6 +141,9 @@ impl Default for PickConfig {
         }
     }
 }
+
+/// The step between the lift's tilts (degrees).
+const LIFT_TILT_STEP_DEG: f64 = 15.0;
 
 /// One step of a pick. Serialised (`robot-bridge plan-jsonl`) with its
 /// kind as a lowercase `kind` tag, without the MoveL target pose.
@@ -186,6 +194,28 @@ impl PickConfig {
     /// How far the fingers open for the approach to a grasp `width_m` wide.
     pub fn approach_opening(&self, width_m: f64) -> f64 {
         (width_m + self.approach_clearance_m).clamp(0.0, 0.14)
+    }
+
+    /// The lift's tilts from the vertical to try in turn (rad): 0, then
+    /// 15 degree steps up to `max_lift_tilt_deg`.
+    pub fn lift_tilts(&self) -> impl Iterator<Item = f64> + use<> {
+        let steps = (self.max_lift_tilt_deg / LIFT_TILT_STEP_DEG + 1e-9)
+            .floor()
+            .max(0.0) as usize;
+        (0..=steps).map(|k| (k as f64 * LIFT_TILT_STEP_DEG).to_radians())
+    }
+
+    /// The lift from a TCP at `world_from_tcp`, `tilt` (rad) from the
+    /// vertical towards the base, rising `lift_m`; None for a tilt when the
+    /// TCP is right over the base (no direction to lean in).
+    pub fn lift_offset(&self, world_from_tcp: &Isometry3<f64>, tilt: f64) -> Option<Vector3<f64>> {
+        let up = self.lift_m * Vector3::z();
+        if tilt == 0.0 {
+            return Some(up);
+        }
+        let to_base = self.world_from_base.translation.vector - world_from_tcp.translation.vector;
+        let towards = Vector3::new(to_base.x, to_base.y, 0.0).try_normalize(1e-6)?;
+        Some(up + self.lift_m * tilt.tan() * towards)
     }
 
     /// Where the fingertips are along the approach from the calibrated TCP

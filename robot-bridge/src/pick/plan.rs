@@ -101,10 +101,6 @@ fn plan_one(
             Translation3::from(world_from_tcp.translation.vector - config.pregrasp_m * approach),
             world_from_tcp.rotation,
         );
-        let lift = Isometry3::from_parts(
-            Translation3::from(world_from_tcp.translation.vector + config.lift_m * Vector3::z()),
-            world_from_tcp.rotation,
-        );
         let Ok(q_pre) = arm.inverse_nearest(&flange_for(&pre), current) else {
             continue;
         };
@@ -122,19 +118,32 @@ fn plan_one(
                 continue;
             }
         };
-        let (q_lift, lift_path) = match linear(
-            arm,
-            config,
-            near,
-            &flange_for(&world_from_tcp),
-            &flange_for(&lift),
-            &q_grasp,
-        ) {
-            Ok(line) => line,
-            Err(e) => {
-                reason = format!("lift: {e}");
-                continue;
+        // Straight up; where the arm cannot reach that high (an object at
+        // the edge of its reach), leaning towards the base by ever more.
+        let lifted = config.lift_tilts().find_map(|tilt| {
+            let lift = Isometry3::from_parts(
+                Translation3::from(
+                    world_from_tcp.translation.vector + config.lift_offset(&world_from_tcp, tilt)?,
+                ),
+                world_from_tcp.rotation,
+            );
+            match linear(
+                arm,
+                config,
+                near,
+                &flange_for(&world_from_tcp),
+                &flange_for(&lift),
+                &q_grasp,
+            ) {
+                Ok((q, path)) => Some((lift, q, path)),
+                Err(e) => {
+                    reason = format!("lift: {e}");
+                    None
+                }
             }
+        });
+        let Some((lift, q_lift, lift_path)) = lifted else {
+            continue;
         };
         // Over the basket the tool's turn about the vertical does not matter:
         // per quarter turn the nearest arm branch (shoulder, elbow, wrist)
@@ -401,6 +410,62 @@ pub(crate) mod tests {
         assert!((opening(0.0, 0.05) - 0.05).abs() < 1e-12);
         assert!((opening(0.005, 0.08) - 0.085).abs() < 1e-12);
         assert_eq!(opening(0.02, 0.13), 0.14);
+    }
+
+    /// The lift's TCP (world), the lift step's pose.
+    fn lift_tcp(config: &PickConfig, plan: &PickPlan) -> Vector3<f64> {
+        plan.steps
+            .iter()
+            .find_map(|s| match s {
+                Step::MoveL {
+                    name: "lift",
+                    base_from_tcp,
+                    ..
+                } => Some((config.world_from_base * base_from_tcp).translation.vector),
+                _ => None,
+            })
+            .unwrap()
+    }
+
+    #[test]
+    fn a_lift_out_of_reach_leans_towards_the_base() {
+        let arm = Ur5e::default();
+        let config = PickConfig::default();
+        assert_eq!(
+            config
+                .lift_tilts()
+                .map(|t| t.to_degrees().round())
+                .collect::<Vec<_>>(),
+            [0.0, 15.0, 30.0, 45.0]
+        );
+        let straight = PickConfig {
+            max_lift_tilt_deg: 0.0,
+            ..PickConfig::default()
+        };
+        assert_eq!(straight.lift_tilts().count(), 1);
+        // 86 cm out the grasp is reachable, 15 cm over it is not.
+        let far = top_grasp(0.0, -0.86, 0.03);
+        let err = plan_pick(&arm, &straight, &[far], &[], &HOME).unwrap_err();
+        assert!(err.to_string().contains("lift: pose unreachable"), "{err}");
+        let plan = plan_pick(&arm, &config, &[far], &[], &HOME).unwrap();
+        let lifted = lift_tcp(&config, &plan) - far.world_from_grasp.translation.vector;
+        assert!((lifted.z - config.lift_m).abs() < 1e-6, "{lifted}");
+        assert!(lifted.x.abs() < 1e-6, "{lifted}");
+        assert!(
+            lifted.y > 0.01 && lifted.y <= config.lift_m + 1e-6,
+            "towards the base: {lifted}"
+        );
+        // Within reach the lift goes straight up, as before.
+        let near = top_grasp(0.1, -0.45, 0.05);
+        let plan = plan_pick(&arm, &config, &[near], &[], &HOME).unwrap();
+        let lifted = lift_tcp(&config, &plan) - near.world_from_grasp.translation.vector;
+        assert!((lifted - config.lift_m * Vector3::z()).norm() < 1e-6, "{lifted}");
+        // Right over the base there is no direction to lean in.
+        assert!(
+            config
+                .lift_offset(&Isometry3::translation(0.0, 0.0, 0.2), 0.5)
+                .is_none()
+        );
     }
 
     #[test]
