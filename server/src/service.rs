@@ -131,7 +131,7 @@ impl PlannerState {
             let state = Arc::clone(self);
             let finished = blocking(move || {
                 let _permit = permit;
-                Ok(state.planner.finish_or_cascade(prepared, &maps)?)
+                Ok(state.planner.finish_or_cascade(prepared, maps)?)
             })
             .instrument(tracing::debug_span!("decode"))
             .await?;

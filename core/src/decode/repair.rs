@@ -45,17 +45,34 @@ pub fn fit_opening(
     hand: &HandConfig,
     object: &Obstacle<'_>,
 ) -> Option<(Isometry3<f64>, f64)> {
-    // The pads' paths, as wide as the stroke: wider than that, no fit.
+    let across = points_inside(world_from_grasp, &pads_paths(gripper, hand), object, |g| g[0]);
+    fit_across(world_from_grasp, across, width_m, gripper, hand)
+}
+
+/// The pads' paths, as wide as the stroke (wider than that, no fit):
+/// across the pads, from the fingertips back over the pad depth and the
+/// approach, grasp frame.
+fn pads_paths(gripper: &Gripper, hand: &HandConfig) -> GraspBox {
     let half_pad_y = gripper.finger_width_m / 2.0;
-    let paths = GraspBox {
+    GraspBox {
         lo: Vector3::new(
             -gripper.max_width_m,
             -half_pad_y,
             -(finger_reach(gripper, hand) + hand.approach_m),
         ),
         hi: Vector3::new(gripper.max_width_m, half_pad_y, 0.0),
-    };
-    let mut across: Vec<f32> = points_inside(world_from_grasp, &paths, object, |g| g[0]);
+    }
+}
+
+/// [`fit_opening`] given the points in the pads' paths (`across`: each
+/// one's coordinate along the closing direction).
+fn fit_across(
+    world_from_grasp: &Isometry3<f64>,
+    mut across: Vec<f32>,
+    width_m: f64,
+    gripper: &Gripper,
+    hand: &HandConfig,
+) -> Option<(Isometry3<f64>, f64)> {
     if across.len() < hand.min_points.max(1) {
         return None;
     }
@@ -67,6 +84,61 @@ pub fn fit_opening(
     }
     let moved = world_from_grasp * nalgebra::Translation3::new(middle, 0.0, 0.0);
     Some((moved, width))
+}
+
+/// An object's points that the pads' paths of a grasp turned by any angle
+/// about its approach can hold, in the grasp frame (x, y): those within the
+/// paths' depth and their corners' distance from the approach axis. Moved
+/// into the grasp frame once for all the turns [`turn_away`] tries.
+struct AroundApproach {
+    paths: GraspBox,
+    near: Vec<[f32; 2]>,
+}
+
+impl AroundApproach {
+    fn new(
+        world_from_grasp: &Isometry3<f64>,
+        gripper: &Gripper,
+        hand: &HandConfig,
+        object: &Obstacle<'_>,
+    ) -> Self {
+        let paths = pads_paths(gripper, hand);
+        let reach = paths
+            .hi
+            .x
+            .abs()
+            .max(paths.lo.x.abs())
+            .hypot(paths.hi.y.abs().max(paths.lo.y.abs()));
+        let cylinder = GraspBox {
+            lo: Vector3::new(-reach, -reach, paths.lo.z),
+            hi: Vector3::new(reach, reach, paths.hi.z),
+        };
+        let near = points_inside(world_from_grasp, &cylinder, object, |g| [g[0], g[1]]);
+        Self { paths, near }
+    }
+
+    /// [`fit_opening`] of the grasp turned by `turn` (rad) about its
+    /// approach, `turned` its pose.
+    fn fit(
+        &self,
+        turned: &Isometry3<f64>,
+        turn: f64,
+        width_m: f64,
+        gripper: &Gripper,
+        hand: &HandConfig,
+    ) -> Option<(Isometry3<f64>, f64)> {
+        let (sin, cos) = (turn.sin() as f32, turn.cos() as f32);
+        let (lo, hi) = (self.paths.lo.map(|v| v as f32), self.paths.hi.map(|v| v as f32));
+        let across = self
+            .near
+            .iter()
+            .filter_map(|&[x, y]| {
+                let (along, side) = (cos * x + sin * y, cos * y - sin * x);
+                (along >= lo.x && along <= hi.x && side >= lo.y && side <= hi.y).then_some(along)
+            })
+            .collect();
+        fit_across(turned, across, width_m, gripper, hand)
+    }
 }
 
 /// The `skip`-th smallest and `skip`-th largest of `values` (0: the
@@ -99,10 +171,16 @@ pub fn turn_away(
     object: &Obstacle<'_>,
     mut passes: impl FnMut(&Isometry3<f64>, f64) -> bool,
 ) -> Option<(Isometry3<f64>, f64)> {
+    if hand.neighbour_turns_deg.is_empty() {
+        return None;
+    }
+    let around = AroundApproach::new(world_from_grasp, gripper, hand, object);
     hand.neighbour_turns_deg.iter().find_map(|deg| {
-        let turned = world_from_grasp
-            * nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), deg.to_radians());
-        let (pose, width) = fit_opening(&turned, width_m, gripper, hand, object).unwrap_or((turned, width_m));
+        let turn = deg.to_radians();
+        let turned = world_from_grasp * nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn);
+        let (pose, width) = around
+            .fit(&turned, turn, width_m, gripper, hand)
+            .unwrap_or((turned, width_m));
         passes(&pose, width).then_some((pose, width))
     })
 }
@@ -225,6 +303,75 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The turns' re-fit from points moved once ([`AroundApproach`]) is the
+    /// re-fit of each turned grasp from scratch ([`fit_opening`]).
+    #[test]
+    fn a_turn_refits_as_fit_opening_does() {
+        let (gripper, hand) = (Gripper::default(), HandConfig::default());
+        let mut state = 11u32;
+        let mut next = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            f64::from(state >> 8) / f64::from(1u32 << 24) - 0.5
+        };
+        let (lo, hi) = (Vector3::repeat(-0.2), Vector3::repeat(0.2));
+        let (mut fitted, mut checked) = (0, 0);
+        for _ in 0..40 {
+            let world_from_object = Isometry3::new(
+                Vector3::new(next(), next(), next()) * 0.2,
+                Vector3::new(next(), next(), next()) * 6.0,
+            );
+            // A slab of an object, so that some turns fit and some do not.
+            let half = Vector3::new(0.02 + 0.1 * next().abs(), 0.01 + 0.1 * next().abs(), 0.1);
+            let points: Vec<[f32; 3]> = (0..600)
+                .map(|_| {
+                    [
+                        next() * 2.0 * half.x,
+                        next() * 2.0 * half.y,
+                        next() * 2.0 * half.z,
+                    ]
+                    .map(|v| v as f32)
+                })
+                .collect();
+            let object = Obstacle {
+                world_from_object: &world_from_object,
+                extent_min_m: &lo,
+                extent_max_m: &hi,
+                points: &points,
+            };
+            let world_from_grasp = world_from_object
+                * Isometry3::new(
+                    Vector3::new(0.02 * next(), 0.02 * next(), 0.1),
+                    Vector3::new(std::f64::consts::PI + 0.3 * next(), 0.3 * next(), 6.0 * next()),
+                );
+            let width = 0.02 + 0.1 * next().abs();
+            let around = AroundApproach::new(&world_from_grasp, &gripper, &hand, &object);
+            for &deg in &hand.neighbour_turns_deg {
+                let turn = f64::to_radians(deg);
+                let turned = world_from_grasp * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn);
+                let fast = around.fit(&turned, turn, width, &gripper, &hand);
+                let slow = fit_opening(&turned, width, &gripper, &hand, &object);
+                checked += 1;
+                match (fast, slow) {
+                    (None, None) => {}
+                    (Some((a, wa)), Some((b, wb))) => {
+                        fitted += 1;
+                        assert!(
+                            (a.translation.vector - b.translation.vector).norm() < 1e-5,
+                            "{deg}"
+                        );
+                        assert!(a.rotation.angle_to(&b.rotation) < 1e-9, "{deg}");
+                        assert!((wa - wb).abs() < 1e-5, "{deg}: {wa} {wb}");
+                    }
+                    (fast, slow) => panic!("{deg}: {fast:?} against {slow:?}"),
+                }
+            }
+        }
+        assert!(
+            fitted > checked / 5 && fitted < checked,
+            "{fitted} of {checked} fitted"
+        );
     }
 
     /// `query` with the default gripper and hand on `points` (world frame)

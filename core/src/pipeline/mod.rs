@@ -230,7 +230,6 @@ impl Planner {
             batch,
             untried,
             earlier: Vec::new(),
-            earlier_maps: Vec::new(),
             options: options.clone(),
             timings,
         })
@@ -240,18 +239,17 @@ impl Planner {
     /// [`PlanOptions::view_cascade`], the next views of the objects that have
     /// no grasp yet (clearing `min_quality` and the hand check) while any
     /// such object has a view left. Every round's maps count in the plan.
-    pub fn finish_or_cascade(&self, mut prepared: Prepared, maps: &GraspMaps) -> Result<Finished> {
+    pub fn finish_or_cascade(&self, mut prepared: Prepared, maps: GraspMaps) -> Result<Finished> {
         maps.check_matches(&prepared.batch)?;
         if prepared.options.view_cascade && prepared.untried.iter().any(|u| !u.is_empty()) {
             let start = Instant::now();
             // Whether an object has a grasp that passes depends on its own
             // views alone, and earlier rounds' views are already counted:
             // only this round's views are decoded to update the cover.
-            let newly = self.objects_with_grasps(&prepared, &prepared.inferred, maps);
+            let newly = self.objects_with_grasps(&prepared, &prepared.inferred, &maps);
             for (covered, newly) in prepared.covered.iter_mut().zip(newly) {
                 *covered |= newly;
             }
-            let (entries, all) = prepared.rounds_so_far(maps);
             let mut batch = ViewBatch::new(prepared.batch.size_px);
             let mut next = Vec::new();
             let objects = prepared.objects.iter_mut().zip(&mut prepared.untried);
@@ -266,14 +264,13 @@ impl Planner {
             }
             prepared.timings.decode += start.elapsed();
             if !next.is_empty() {
-                prepared.earlier = entries;
-                prepared.earlier_maps = all.data;
-                prepared.inferred = next;
+                let this_round = std::mem::replace(&mut prepared.inferred, next);
+                prepared.earlier.push((this_round, maps));
                 prepared.batch = batch;
                 return Ok(Finished::More(Box::new(prepared)));
             }
         }
-        self.finish(prepared, maps)
+        self.finish(prepared, &maps)
             .map(|plan| Finished::Plan(Box::new(plan)))
     }
 
@@ -291,7 +288,7 @@ impl Planner {
             ..prepared.options.clone()
         };
         // One grasp per object answers the question: the check stops there.
-        let vetted = self.decode_and_rank(prepared, entries, maps, &options, 1);
+        let vetted = self.decode_and_rank(prepared, &[(entries, maps)], &options, 1);
         let mut covered = vec![false; prepared.objects.len()];
         for g in &vetted.ranked.grasps {
             if let Some(i) = prepared.objects.iter().position(|o| o.object.id == g.object_id) {
@@ -301,19 +298,25 @@ impl Planner {
         covered
     }
 
-    /// Decodes every inferred view (`entries`, rows of `maps`), checks the
-    /// hand and ranks: the grasps, and what the check refused, deferred or turned.
+    /// Decodes every inferred view (per round, its entries are the rows of
+    /// its maps), checks the hand and ranks: the grasps, and what the check
+    /// refused, deferred or turned.
     fn decode_and_rank(
         &self,
         prepared: &Prepared,
-        entries: &[(usize, usize)],
-        maps: &GraspMaps,
+        rounds: &[(&[(usize, usize)], &GraspMaps)],
         options: &PlanOptions,
         max_per_object: usize,
     ) -> Vetted {
         let (objects, table, view) = (&prepared.objects, &prepared.table, &prepared.view);
         let mut grasps = Vec::new();
-        for (batch_index, &(object, view)) in entries.iter().enumerate() {
+        let rows = rounds.iter().flat_map(|&(entries, maps)| {
+            entries
+                .iter()
+                .enumerate()
+                .map(move |(row, &entry)| (entry, maps, row))
+        });
+        for ((object, view), maps, batch_index) in rows {
             let o = &objects[object];
             let placement = ViewPlacement {
                 view: &o.views[view],
@@ -394,18 +397,25 @@ impl Planner {
     pub fn finish(&self, prepared: Prepared, maps: &GraspMaps) -> Result<Plan> {
         maps.check_matches(&prepared.batch)?;
         let start = Instant::now();
-        let (inferred, maps) = prepared.rounds_so_far(maps);
         let Vetted {
             ranked,
             turned_square,
             per_object,
         } = self.decode_and_rank(
             &prepared,
-            &inferred,
-            &maps,
+            &prepared.rounds_so_far(maps),
             &prepared.options,
             self.config.max_grasps_per_object,
         );
+        let mut debug_maps = std::collections::HashMap::new();
+        if prepared.options.keep_views {
+            for (entries, maps) in prepared.rounds_so_far(maps) {
+                let per_view = 4 * maps.size_px * maps.size_px;
+                for (row, &entry) in entries.iter().enumerate() {
+                    debug_maps.insert(entry, maps.data[row * per_view..(row + 1) * per_view].to_vec());
+                }
+            }
+        }
         let Prepared {
             objects,
             table,
@@ -423,17 +433,12 @@ impl Planner {
         let outside_approach_cone = total(|r| r.outside_approach_cone);
         let mut debug_views = Vec::new();
         if options.keep_views {
-            let per_view = 4 * maps.size_px * maps.size_px;
             for (object_index, o) in objects.iter().enumerate() {
                 for (v, view) in o.views.iter().enumerate() {
-                    let maps = inferred
-                        .iter()
-                        .position(|&e| e == (object_index, v))
-                        .map(|b| maps.data[b * per_view..(b + 1) * per_view].to_vec());
                     debug_views.push(DebugView {
                         object_id: o.object.id,
                         view: view.clone(),
-                        maps,
+                        maps: debug_maps.remove(&(object_index, v)),
                     });
                 }
             }
@@ -487,7 +492,7 @@ impl Planner {
             };
             inference += start.elapsed();
             prepared.set_inference_time(inference);
-            match self.finish_or_cascade(prepared, &maps)? {
+            match self.finish_or_cascade(prepared, maps)? {
                 Finished::Plan(plan) => return Ok(*plan),
                 Finished::More(next) => prepared = *next,
             }

@@ -29,9 +29,8 @@ pub struct Prepared {
     pub(super) batch: ViewBatch,
     /// Each object's views not inferred yet, best entropy first (the cascade's order).
     pub(super) untried: Vec<Vec<usize>>,
-    /// Earlier rounds of the cascade: their entries and maps.
-    pub(super) earlier: Vec<(usize, usize)>,
-    pub(super) earlier_maps: Vec<f32>,
+    /// Earlier rounds of the cascade: each one's entries and maps.
+    pub(super) earlier: Vec<Round>,
     /// Objects with a grasp that clears the hand check in an earlier round.
     pub(super) covered: Vec<bool>,
     pub(super) options: PlanOptions,
@@ -46,20 +45,22 @@ pub(super) struct Vetted {
     pub(super) per_object: Vec<ObjectRefusals>,
 }
 
+/// One round of the cascade: `(object index, view index)` of each batch
+/// entry, and the network's maps of that batch.
+pub(super) type Round = (Vec<(usize, usize)>, GraspMaps);
+
 impl Prepared {
-    /// The `(object, view)` entries and maps of earlier cascade rounds,
-    /// followed by this round's (`maps`).
-    pub(super) fn rounds_so_far(&self, maps: &GraspMaps) -> (Vec<(usize, usize)>, GraspMaps) {
-        let entries = self.earlier.iter().chain(&self.inferred).copied().collect();
-        let mut data = Vec::with_capacity(self.earlier_maps.len() + maps.data.len());
-        data.extend_from_slice(&self.earlier_maps);
-        data.extend_from_slice(&maps.data);
-        let all = GraspMaps {
-            size_px: maps.size_px,
-            len: self.earlier.len() + maps.len,
-            data,
-        };
-        (entries, all)
+    /// Every round so far, the earlier ones and this one (`maps`, of the
+    /// current batch), in the order they were inferred.
+    pub(super) fn rounds_so_far<'a>(
+        &'a self,
+        maps: &'a GraspMaps,
+    ) -> Vec<(&'a [(usize, usize)], &'a GraspMaps)> {
+        self.earlier
+            .iter()
+            .map(|(entries, maps)| (entries.as_slice(), maps))
+            .chain([(self.inferred.as_slice(), maps)])
+            .collect()
     }
 }
 
