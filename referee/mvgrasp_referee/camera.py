@@ -4,7 +4,10 @@ Poses look at the objects' area (the world origin, table top):
 - `topdown`: 1.0-1.2 m above the table, straight down (any roll);
 - `angled`: 45 degrees elevation, 0.85-1.0 m from the area, from the side
   facing the robot (+-30 degrees of azimuth);
-- `random`: 30-90 degrees elevation, any azimuth, 0.8-1.2 m.
+- `random`: 30-90 degrees elevation, any azimuth, 0.8-1.2 m; a pose from
+  which the parked arm hides part of the objects' area (or that lies
+  inside the arm) is drawn again: a camera is mounted where it sees the
+  table.
 
 Rendering is MuJoCo's depth buffer (metres along the optical axis), headless
 through OSMesa here (`MUJOCO_GL=osmesa`) or EGL on a GPU machine. The
@@ -62,8 +65,43 @@ def look_at(eye, target, up_hint):
     return t
 
 
-def sample_pose(kind, rng, resolution="640x480"):
-    """A camera of `kind` drawn from `rng` (numpy Generator)."""
+# Tries at a pose that sees the area before giving up.
+MAX_DRAWS = 100
+
+
+def sample_pose(kind, rng, resolution="640x480", sees_area=None):
+    """A camera of `kind` drawn from `rng` (numpy Generator) and how many
+    `random` poses were drawn again because `sees_area(pose)` said no
+    (None: every pose is kept)."""
+    for redrawn in range(MAX_DRAWS):
+        pose = _draw_pose(kind, rng, resolution)
+        if kind != "random" or sees_area is None or sees_area(pose):
+            return pose, redrawn
+    raise RuntimeError(f"no {kind} camera pose in {MAX_DRAWS} draws sees the objects' area")
+
+
+def sees_area(cell, pose, area_half_m, lift_m=0.3):
+    """Whether a camera at `pose` sees the objects' area past the arm: rays
+    between its eye and the area's centre and corners meet no geom of the
+    robot (`cell.robot_geoms`) on the way, cast both ways (the one from the
+    area starts `lift_m` above the table, over the objects, and catches an
+    eye inside the arm)."""
+    model, data = cell.model, cell.data
+    eye = pose.world_from_camera[:3, 3]
+    robot = cell.robot_geoms
+    geomid = np.zeros(1, np.int32)
+    corners = [(0.0, 0.0)] + [(sx * area_half_m, sy * area_half_m) for sx in (-1, 1) for sy in (-1, 1)]
+    for x, y in corners:
+        for start, end in ((eye, np.array([x, y, 0.0])), (np.array([x, y, lift_m]), eye)):
+            ray = end - start
+            length = float(np.linalg.norm(ray))
+            hit = mujoco.mj_ray(model, data, start, ray / length, None, 1, -1, geomid)
+            if 0.0 <= hit < length and int(geomid[0]) in robot:
+                return False
+    return True
+
+
+def _draw_pose(kind, rng, resolution):
     if kind not in CAMERAS:
         raise ValueError(f"unknown camera {kind!r} (one of {', '.join(CAMERAS)})")
     width, height = RESOLUTIONS[resolution]

@@ -95,14 +95,15 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
         return specs[index].name if index is not None else None
 
     rng = np.random.default_rng([seed, episode, 13])
-    pose = cammod.sample_pose(camera_kind, rng, resolution)
+    pose, redrawn = cammod.sample_pose(camera_kind, rng, resolution,
+                                       lambda p: cammod.sees_area(cell, p, cellmod.AREA_HALF_M))
     cam = cammod.DepthCamera(cell.model, pose.width, pose.height)
     table = gripper.gap_table(cell)
     allowed_failures = scenes.SCENARIOS[scenario][1]
     initial = [i for i in range(len(specs)) if scenes.on_table(cell, i)]
     record = {"scenario": scenario, "pool": pool, "camera": camera_kind, "seed": seed, "episode": episode,
               "objects": [s.name for s in specs], "initial": len(initial), "attempts": [], "end": None,
-              "camera_pose": pose.world_from_camera.round(4).tolist()}
+              "camera_pose": pose.world_from_camera.round(4).tolist(), "camera_redrawn": redrawn}
     removed, failures = set(), 0
     try:
         for attempt in range(2 * len(specs) + 4):

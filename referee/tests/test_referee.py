@@ -181,7 +181,7 @@ class CameraTest(unittest.TestCase):
         geomgroup = np.array([1, 1, 1, 0, 0, 0], np.uint8)
         hit_geom = np.zeros(1, np.int32)
         for kind in camera.CAMERAS:
-            pose = camera.sample_pose(kind, np.random.default_rng(3), "424x240")
+            pose, _ = camera.sample_pose(kind, np.random.default_rng(3), "424x240")
             cam = camera.DepthCamera(c.model, pose.width, pose.height)
             try:
                 depth = cam.depth(c.model, c.data, pose)
@@ -199,6 +199,35 @@ class CameraTest(unittest.TestCase):
                                          hit_geom)
                 errors.append(abs(distance - np.linalg.norm(points[k] - eye)))
             self.assertLess(float(np.median(errors)), 0.001, kind)
+
+
+    def test_random_poses_the_parked_arm_hides_the_area_from_are_drawn_again(self):
+        c, _ = scenes.make("isolated", "test-b", 1, 0)
+
+        def at(eye):
+            return camera.CameraPose("random", camera.look_at(np.array(eye), camera.TARGET,
+                                                               np.array([0.0, 0.0, -1.0])), 424, 240,
+                                     camera.FOVY_DEG)
+
+        def sees(pose):
+            return camera.sees_area(c, pose, cell.AREA_HALF_M)
+
+        # Behind the robot, over its base (train seed 2027, episode 1:
+        # every point in view lay outside the workspace), and in front.
+        self.assertFalse(sees(at([0.08, -0.625, 0.682])))
+        self.assertFalse(sees(at([0.132, -0.704, 0.535])))
+        self.assertTrue(sees(at([0.0, 0.6, 0.7])))
+        self.assertTrue(sees(at([0.0, 0.0, 1.1])))
+        # Drawing goes on past hidden poses; other kinds are never redrawn.
+        answers = iter([False, False, True])
+        pose, redrawn = camera.sample_pose("random", np.random.default_rng(3), "424x240", lambda p: next(answers))
+        self.assertEqual(redrawn, 2)
+        first, _ = camera.sample_pose("random", np.random.default_rng(3), "424x240")
+        self.assertFalse(np.allclose(pose.world_from_camera, first.world_from_camera))
+        pose, redrawn = camera.sample_pose("angled", np.random.default_rng(3), "424x240", lambda p: False)
+        self.assertEqual(redrawn, 0)
+        shares = [sees(camera.sample_pose("random", np.random.default_rng(k))[0]) for k in range(200)]
+        self.assertTrue(0.8 < np.mean(shares) < 1.0, np.mean(shares))
 
 
 class OracleTest(unittest.TestCase):
