@@ -230,6 +230,7 @@ impl Planner {
             batch,
             untried,
             earlier: Vec::new(),
+            decoded: Vec::new(),
             options: options.clone(),
             timings,
         })
@@ -246,10 +247,12 @@ impl Planner {
             // Whether an object has a grasp that passes depends on its own
             // views alone, and earlier rounds' views are already counted:
             // only this round's views are decoded to update the cover.
-            let newly = self.objects_with_grasps(&prepared, &prepared.inferred, &maps);
+            let fresh = self.decode_round(&prepared, &prepared.inferred, &maps);
+            let newly = self.objects_with_grasps(&prepared, fresh.clone());
             for (covered, newly) in prepared.covered.iter_mut().zip(newly) {
                 *covered |= newly;
             }
+            prepared.decoded.extend(fresh);
             let mut batch = ViewBatch::new(prepared.batch.size_px);
             let mut next = Vec::new();
             let objects = prepared.objects.iter_mut().zip(&mut prepared.untried);
@@ -269,6 +272,10 @@ impl Planner {
                 prepared.batch = batch;
                 return Ok(Finished::More(Box::new(prepared)));
             }
+            // Every round is decoded: rank what they gave.
+            return self
+                .rank_decoded(prepared, &maps, Instant::now())
+                .map(|plan| Finished::Plan(Box::new(plan)));
         }
         self.finish(prepared, &maps)
             .map(|plan| Finished::Plan(Box::new(plan)))
@@ -276,19 +283,14 @@ impl Planner {
 
     /// Which objects have at least one grasp that clears `min_quality` and
     /// the hand check in the maps so far.
-    fn objects_with_grasps(
-        &self,
-        prepared: &Prepared,
-        entries: &[(usize, usize)],
-        maps: &GraspMaps,
-    ) -> Vec<bool> {
+    fn objects_with_grasps(&self, prepared: &Prepared, candidates: Vec<Grasp>) -> Vec<bool> {
         let options = PlanOptions {
             max_grasps: usize::MAX,
             keep_views: false,
             ..prepared.options.clone()
         };
         // One grasp per object answers the question: the check stops there.
-        let vetted = self.decode_and_rank(prepared, &[(entries, maps)], &options, 1);
+        let vetted = self.vet_and_rank(prepared, candidates, &options, 1);
         let mut covered = vec![false; prepared.objects.len()];
         for g in &vetted.ranked.grasps {
             if let Some(i) = prepared.objects.iter().position(|o| o.object.id == g.object_id) {
@@ -298,26 +300,13 @@ impl Planner {
         covered
     }
 
-    /// Decodes every inferred view (per round, its entries are the rows of
-    /// its maps), checks the hand and ranks: the grasps, and what the check
-    /// refused, deferred or turned.
-    fn decode_and_rank(
-        &self,
-        prepared: &Prepared,
-        rounds: &[(&[(usize, usize)], &GraspMaps)],
-        options: &PlanOptions,
-        max_per_object: usize,
-    ) -> Vetted {
-        let (objects, table, view) = (&prepared.objects, &prepared.table, &prepared.view);
+    /// The candidate grasps of one round's views (`entries`, the rows of
+    /// `maps`), in entry order, before the approach cone and the hand check.
+    fn decode_round(&self, prepared: &Prepared, entries: &[(usize, usize)], maps: &GraspMaps) -> Vec<Grasp> {
+        let options = &prepared.options;
         let mut grasps = Vec::new();
-        let rows = rounds.iter().flat_map(|&(entries, maps)| {
-            entries
-                .iter()
-                .enumerate()
-                .map(move |(row, &entry)| (entry, maps, row))
-        });
-        for ((object, view), maps, batch_index) in rows {
-            let o = &objects[object];
+        for (batch_index, &(object, view)) in entries.iter().enumerate() {
+            let o = &prepared.objects[object];
             let placement = ViewPlacement {
                 view: &o.views[view],
                 world_from_object: &o.object.frame.world_from_object,
@@ -329,11 +318,25 @@ impl Planner {
                 batch_index,
                 &self.contract,
                 &options.gripper,
-                table,
+                &prepared.table,
                 options.min_quality,
                 &self.config.decode,
             ));
         }
+        grasps
+    }
+
+    /// The candidates (decoded, [`Self::decode_round`]) through the approach
+    /// cone, the hand check and the ranking: the grasps, and what the check
+    /// refused, deferred or turned.
+    fn vet_and_rank(
+        &self,
+        prepared: &Prepared,
+        mut grasps: Vec<Grasp>,
+        options: &PlanOptions,
+        max_per_object: usize,
+    ) -> Vetted {
+        let (objects, table, view) = (&prepared.objects, &prepared.table, &prepared.view);
         // Approaches the robot cannot take: dropped before anything else.
         let mut per_object = vec![ObjectRefusals::default(); objects.len()];
         let index_of = |id: u32| objects.iter().position(|o| o.object.id == id);
@@ -394,16 +397,25 @@ impl Planner {
 
     /// Maps of the prepared batch (and of earlier cascade rounds) -> ranked
     /// grasps; no further view is inferred.
-    pub fn finish(&self, prepared: Prepared, maps: &GraspMaps) -> Result<Plan> {
+    pub fn finish(&self, mut prepared: Prepared, maps: &GraspMaps) -> Result<Plan> {
         maps.check_matches(&prepared.batch)?;
         let start = Instant::now();
+        let fresh = self.decode_round(&prepared, &prepared.inferred, maps);
+        prepared.decoded.extend(fresh);
+        self.rank_decoded(prepared, maps, start)
+    }
+
+    /// [`Self::finish`] once every round so far is decoded (`prepared.decoded`);
+    /// `maps` are the current round's, for the debug views.
+    fn rank_decoded(&self, mut prepared: Prepared, maps: &GraspMaps, start: Instant) -> Result<Plan> {
+        let candidates = std::mem::take(&mut prepared.decoded);
         let Vetted {
             ranked,
             turned_square,
             per_object,
-        } = self.decode_and_rank(
+        } = self.vet_and_rank(
             &prepared,
-            &prepared.rounds_so_far(maps),
+            candidates,
             &prepared.options,
             self.config.max_grasps_per_object,
         );

@@ -5,7 +5,7 @@ use super::options::PlanOptions;
 use super::plan::{DetectedObject, ObjectRefusals, Plan, RankedLast, StageTimings};
 use std::time::Duration;
 
-use crate::decode::Ranked;
+use crate::decode::{Grasp, Ranked};
 use crate::infer::{GraspMaps, ViewBatch};
 use crate::segment::TablePlane;
 use crate::sensor::FieldOfView;
@@ -31,6 +31,8 @@ pub struct Prepared {
     pub(super) untried: Vec<Vec<usize>>,
     /// Earlier rounds of the cascade: each one's entries and maps.
     pub(super) earlier: Vec<Round>,
+    /// The candidate grasps the earlier rounds' views gave, decoded once.
+    pub(super) decoded: Vec<Grasp>,
     /// Objects with a grasp that clears the hand check in an earlier round.
     pub(super) covered: Vec<bool>,
     pub(super) options: PlanOptions,
