@@ -69,13 +69,13 @@ def look_at(eye, target, up_hint):
 MAX_DRAWS = 100
 
 
-def sample_pose(kind, rng, resolution="640x480", sees_area=None):
+def sample_pose(kind, rng, resolution="640x480", keep=None):
     """A camera of `kind` drawn from `rng` (numpy Generator) and how many
-    `random` poses were drawn again because `sees_area(pose)` said no
-    (None: every pose is kept)."""
+    `random` poses were drawn again because `keep(pose)` said no (None:
+    every pose is kept; the referee passes `sees_area`)."""
     for redrawn in range(MAX_DRAWS):
         pose = _draw_pose(kind, rng, resolution)
-        if kind != "random" or sees_area is None or sees_area(pose):
+        if kind != "random" or keep is None or keep(pose):
             return pose, redrawn
     raise RuntimeError(f"no {kind} camera pose in {MAX_DRAWS} draws sees the objects' area")
 

@@ -247,7 +247,7 @@ impl Planner {
             // Whether an object has a grasp that passes depends on its own
             // views alone, and earlier rounds' views are already counted:
             // only this round's views are decoded to update the cover.
-            let fresh = self.decode_round(&prepared, &prepared.inferred, &maps);
+            let fresh = self.decode_round(&prepared, &maps);
             let newly = self.objects_with_grasps(&prepared, fresh.clone());
             for (covered, newly) in prepared.covered.iter_mut().zip(newly) {
                 *covered |= newly;
@@ -300,12 +300,13 @@ impl Planner {
         covered
     }
 
-    /// The candidate grasps of one round's views (`entries`, the rows of
-    /// `maps`), in entry order, before the approach cone and the hand check.
-    fn decode_round(&self, prepared: &Prepared, entries: &[(usize, usize)], maps: &GraspMaps) -> Vec<Grasp> {
+    /// The candidate grasps of the current round's views (`prepared.inferred`,
+    /// the rows of `maps`), in batch order, before the approach cone and the
+    /// hand check.
+    fn decode_round(&self, prepared: &Prepared, maps: &GraspMaps) -> Vec<Grasp> {
         let options = &prepared.options;
         let mut grasps = Vec::new();
-        for (batch_index, &(object, view)) in entries.iter().enumerate() {
+        for (batch_index, &(object, view)) in prepared.inferred.iter().enumerate() {
             let o = &prepared.objects[object];
             let placement = ViewPlacement {
                 view: &o.views[view],
@@ -400,7 +401,7 @@ impl Planner {
     pub fn finish(&self, mut prepared: Prepared, maps: &GraspMaps) -> Result<Plan> {
         maps.check_matches(&prepared.batch)?;
         let start = Instant::now();
-        let fresh = self.decode_round(&prepared, &prepared.inferred, maps);
+        let fresh = self.decode_round(&prepared, maps);
         prepared.decoded.extend(fresh);
         self.rank_decoded(prepared, maps, start)
     }
