@@ -45,8 +45,8 @@ pub fn fit_opening(
     hand: &HandConfig,
     object: &Obstacle<'_>,
 ) -> Option<(Isometry3<f64>, f64)> {
-    let across = points_inside(world_from_grasp, &pads_paths(gripper, hand), object, |g| g[0]);
-    fit_across(world_from_grasp, across, width_m, gripper, hand)
+    let mut across = points_inside(world_from_grasp, &pads_paths(gripper, hand), object, |g| g[0]);
+    fit_across(world_from_grasp, &mut across, width_m, gripper, hand)
 }
 
 /// The pads' paths, as wide as the stroke (wider than that, no fit):
@@ -68,7 +68,7 @@ fn pads_paths(gripper: &Gripper, hand: &HandConfig) -> GraspBox {
 /// one's coordinate along the closing direction).
 fn fit_across(
     world_from_grasp: &Isometry3<f64>,
-    mut across: Vec<f32>,
+    across: &mut [f32],
     width_m: f64,
     gripper: &Gripper,
     hand: &HandConfig,
@@ -76,7 +76,7 @@ fn fit_across(
     if across.len() < hand.min_points.max(1) {
         return None;
     }
-    let (lo, hi) = trimmed_range(&mut across, hand.min_points.saturating_sub(1));
+    let (lo, hi) = trimmed_range(across, hand.min_points.saturating_sub(1));
     let middle = (lo + hi) / 2.0;
     let width = (hi - lo + 2.0 * hand.fit_clearance_m).max(width_m);
     if width > gripper.max_width_m || middle.abs() > width_m / 2.0 {
@@ -118,9 +118,12 @@ impl AroundApproach {
     }
 
     /// [`fit_opening`] of the grasp turned by `turn` (rad) about its
-    /// approach, `turned` its pose.
+    /// approach, `turned` its pose; `along` is scratch space, kept across
+    /// turns.
+    #[allow(clippy::too_many_arguments)]
     fn fit(
         &self,
+        along: &mut Vec<f32>,
         turned: &Isometry3<f64>,
         turn: f64,
         width_m: f64,
@@ -129,24 +132,32 @@ impl AroundApproach {
     ) -> Option<(Isometry3<f64>, f64)> {
         let (sin, cos) = (turn.sin() as f32, turn.cos() as f32);
         let (lo, hi) = (self.paths.lo.map(|v| v as f32), self.paths.hi.map(|v| v as f32));
-        let across = self
-            .near
-            .iter()
-            .filter_map(|&[x, y]| {
-                let (along, side) = (cos * x + sin * y, cos * y - sin * x);
-                (along >= lo.x && along <= hi.x && side >= lo.y && side <= hi.y).then_some(along)
-            })
-            .collect();
-        fit_across(turned, across, width_m, gripper, hand)
+        // Every point is written and only those in the paths are kept (the
+        // count advances on them): no branch on the test, which follows no
+        // pattern a predictor learns.
+        along.clear();
+        along.resize(self.near.len(), 0.0);
+        let mut kept = 0;
+        for &[x, y] in &self.near {
+            let (a, side) = (cos * x + sin * y, cos * y - sin * x);
+            along[kept] = a;
+            kept += usize::from((a >= lo.x) & (a <= hi.x) & (side >= lo.y) & (side <= hi.y));
+        }
+        fit_across(turned, &mut along[..kept], width_m, gripper, hand)
     }
 }
 
 /// The `skip`-th smallest and `skip`-th largest of `values` (0: the
-/// extremes; `skip` is held to the middle), by two selections rather than
-/// a sort; `values` is reordered. `values` must not be empty.
+/// extremes; `skip` is held to the middle): for a small `skip` (the hand
+/// check's default is 2) in one pass that keeps the `skip + 1` least and
+/// greatest values seen, else by two selections rather than a sort, which
+/// reorder `values`. `values` must not be empty and holds no NaN.
 fn trimmed_range(values: &mut [f32], skip: usize) -> (f64, f64) {
     let last = values.len() - 1;
     let skip = skip.min(last / 2);
+    if skip < TRACKED {
+        return tracked_range(values, skip);
+    }
     let (_, &mut lo, upper) = values.select_nth_unstable_by(skip, f32::total_cmp);
     let hi = if last - skip == skip {
         lo
@@ -156,6 +167,37 @@ fn trimmed_range(values: &mut [f32], skip: usize) -> (f64, f64) {
             .1
     };
     (f64::from(lo), f64::from(hi))
+}
+
+/// Order statistics [`trimmed_range`] reads in one pass, at most.
+const TRACKED: usize = 8;
+
+/// [`trimmed_range`] for `skip < TRACKED`: the `skip + 1` least values
+/// seen kept in order (as the greatest), each value compared with the
+/// last kept one first; past the first few, a value rarely enters.
+fn tracked_range(values: &[f32], skip: usize) -> (f64, f64) {
+    let k = skip + 1;
+    let mut least = [f32::INFINITY; TRACKED];
+    let mut greatest = [f32::NEG_INFINITY; TRACKED];
+    for &v in values {
+        if v < least[k - 1] {
+            let mut i = k - 1;
+            while i > 0 && least[i - 1] > v {
+                least[i] = least[i - 1];
+                i -= 1;
+            }
+            least[i] = v;
+        }
+        if v > greatest[k - 1] {
+            let mut i = k - 1;
+            while i > 0 && greatest[i - 1] < v {
+                greatest[i] = greatest[i - 1];
+                i -= 1;
+            }
+            greatest[i] = v;
+        }
+    }
+    (f64::from(least[k - 1]), f64::from(greatest[k - 1]))
 }
 
 /// The grasp turned about its approach axis away from a neighbour: for
@@ -175,11 +217,12 @@ pub fn turn_away(
         return None;
     }
     let around = AroundApproach::new(world_from_grasp, gripper, hand, object);
+    let mut along = Vec::new();
     hand.neighbour_turns_deg.iter().find_map(|deg| {
         let turn = deg.to_radians();
         let turned = world_from_grasp * nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn);
         let (pose, width) = around
-            .fit(&turned, turn, width_m, gripper, hand)
+            .fit(&mut along, &turned, turn, width_m, gripper, hand)
             .unwrap_or((turned, width_m));
         passes(&pose, width).then_some((pose, width))
     })
@@ -290,7 +333,7 @@ mod tests {
             (state >> 24) as f32 / 16.0 - 8.0
         };
         for len in 1..40 {
-            for skip in [0, 1, 2, 3, 7, 19, 25, 100] {
+            for skip in [0, 1, 2, 3, 7, 8, 19, 25, 100] {
                 let values: Vec<f32> = (0..len).map(|_| next()).collect();
                 let mut sorted = values.clone();
                 sorted.sort_by(f32::total_cmp);
@@ -347,10 +390,11 @@ mod tests {
                 );
             let width = 0.02 + 0.1 * next().abs();
             let around = AroundApproach::new(&world_from_grasp, &gripper, &hand, &object);
+            let mut along = Vec::new();
             for &deg in &hand.neighbour_turns_deg {
                 let turn = f64::to_radians(deg);
                 let turned = world_from_grasp * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn);
-                let fast = around.fit(&turned, turn, width, &gripper, &hand);
+                let fast = around.fit(&mut along, &turned, turn, width, &gripper, &hand);
                 let slow = fit_opening(&turned, width, &gripper, &hand, &object);
                 checked += 1;
                 match (fast, slow) {
