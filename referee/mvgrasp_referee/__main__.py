@@ -89,9 +89,8 @@ _worker = {}
 
 
 def _init(args):
-    from . import bridge, cell, executor, gripper, planner  # noqa: PLC0415
+    from . import bridge, cell, gripper, planner  # noqa: PLC0415
 
-    executor.CLOSE_SPEED_M_S = args.close_speed_m_s
     probe = cell.build([], [])
     travel = [] if args.rigid_tcp else gripper.fingertip_travel(probe)
     _worker["bridge"] = bridge.Bridge(args.bridge, gripper.tcp_in_flange(probe), travel, args.bin_fill_m,
@@ -122,7 +121,7 @@ def _run(job):
     recorder = attempt_views.Recorder() if args.attempt_views else None
     record = protocol.run_episode(_worker["planner"], _worker["bridge"], scenario, pool, cam, args.seed, episode,
                                   args.resolution, args.noise, take if args.snapshots > 0 else None,
-                                  recorder, args.attempt_alternatives)
+                                  recorder, args.attempt_alternatives, args.close_speed_m_s)
     if recorder is not None:
         record["attempt_views"] = recorder.write(args.attempt_views, scenario, cam, args.seed, episode,
                                                  _worker["contract"]["input_size_px"])

@@ -4,6 +4,7 @@ for the network to learn from (`--attempt-views DIR`).
 Per episode, `attempts_SCENARIO_CAMERA_SEED_eEPISODE.npy` (float32
 `[n, L, L]`: the view each tried grasp came from, exactly as the network
 read it) and a `.json` beside it (per row the quality peak `pixel` `[u, v]`,
+the grasp's `angle_rad` in the view (closing direction from +u towards +v),
 the `outcome`: "ok" when the object reached the bin, else the referee's
 failure name, and whether the row is an `alternative`: a grasp ranked below
 the episode's own, tried from the same state, which was then put back);
@@ -36,7 +37,8 @@ class Recorder:
             return False
         self.views.append(view)
         self.rows.append({"step": step, "rank": rank, "alternative": alternative, "view": grasp["view"],
-                          "pixel": list(grasp["pixel"]), "quality": round(grasp["quality"], 4),
+                          "pixel": list(grasp["pixel"]), "angle_rad": round(grasp.get("angle_rad", 0.0), 4),
+                          "quality": round(grasp["quality"], 4),
                           "width_mm": round(grasp["width_m"] * 1000.0, 1),
                           "outcome": HELD if outcome == "success" else outcome, "target": target})
         return True

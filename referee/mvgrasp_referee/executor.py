@@ -38,8 +38,9 @@ HELD_LIFT_M = 0.05  # an object held after a lift is this much above where it wa
 class Run:
     """One pick in progress: steps the physics and keeps what happened."""
 
-    def __init__(self, cell, target, budget_s=40.0):
+    def __init__(self, cell, target, budget_s=40.0, close_speed_m_s=CLOSE_SPEED_M_S):
         self.cell, self.target = cell, target
+        self.close_speed_m_s = close_speed_m_s
         self.m, self.d = cell.model, cell.data
         self.steps_left = int(budget_s / cellmod.TIMESTEP_S)
         self.collisions = []  # (phase, geom names) of the arm meeting something
@@ -114,13 +115,13 @@ class Run:
         return self.step(int(0.6 / cellmod.TIMESTEP_S))
 
     def close(self, table):
-        """Closes the pads at `CLOSE_SPEED_M_S` (the command ramps down the
+        """Closes the pads at `close_speed_m_s` (the command ramps down the
         gap table from the current opening; the pads stop on an object
         while the command goes on, so the squeeze builds to its limit), then
         until the knuckle stops moving (or CLOSE_MAX_S)."""
-        if CLOSE_SPEED_M_S > 0:
+        if self.close_speed_m_s > 0:
             gap = gripper.pad_gap(self.cell)
-            steps = int(gap / CLOSE_SPEED_M_S / cellmod.TIMESTEP_S)
+            steps = int(gap / self.close_speed_m_s / cellmod.TIMESTEP_S)
             for k in range(1, steps + 1):
                 width = gap * (1 - k / steps)
                 gripper.set_command(self.cell, gripper.command_for_width(table, width))
@@ -169,10 +170,10 @@ def held_objects(cell):
     return touching[0] & touching[1]
 
 
-def execute(cell, plan_steps, target, gap_table):
-    """Runs the bridge's steps for a grasp of object `target` (index or None)
-    and returns (outcome, details)."""
-    run = Run(cell, target)
+def execute(cell, plan_steps, target, gap_table, close_speed_m_s=CLOSE_SPEED_M_S):
+    """Runs the bridge's steps for a grasp of object `target` (index or None),
+    the pads closing at `close_speed_m_s`, and returns (outcome, details)."""
+    run = Run(cell, target, close_speed_m_s=close_speed_m_s)
     start_z = {i: cell.object_pose(i)[0][2] for i in range(len(cell.bodies))}
     closed = False
     lifted = False

@@ -114,7 +114,7 @@ class Planner:
             "orientation": [g.pose.orientation.x, g.pose.orientation.y, g.pose.orientation.z, g.pose.orientation.w],
             "width_m": g.width_m, "quality": g.quality, "object": g.object_id,
             "view": pb.ViewAxis.Name(g.view).removeprefix("VIEW_AXIS_").lower(),
-            "pixel": (g.pixel_u, g.pixel_v),
+            "pixel": (g.pixel_u, g.pixel_v), "angle_rad": g.angle_rad,
         } for g in response.grasps]
         # The network's input of each view, by (object, view name); the first of equals.
         views = {}

@@ -21,6 +21,33 @@ from .planner import REFUSALS, bridge_scene
 MAX_GRASPS_TRIED = 10
 
 
+def _matrix_xyzw(q):
+    x, y, z, w = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def grasp_on_object(grasp, objects):
+    """How a planned grasp sits on its object as the planner saw it: the
+    object's extent (its gravity-aligned frame: x the long horizontal axis,
+    z up) and the angle between the closing line and that long axis seen
+    from above (0: end to end, 90: across). Empty when the object is not
+    among the detected ones."""
+    obj = next((o for o in objects if o["id"] == grasp["object"]), None)
+    if obj is None:
+        return {}
+    extent = np.subtract(obj["extent_max_m"], obj["extent_min_m"])
+    closing = _matrix_xyzw(grasp["orientation"])[:, 0]
+    long_axis = _matrix_xyzw(obj["orientation"])[:, 0]
+    across = np.hypot(closing[0], closing[1])
+    angle = 90.0
+    if across > 1e-9:
+        cosine = abs(closing[0] * long_axis[0] + closing[1] * long_axis[1]) / (across * np.hypot(*long_axis[:2]))
+        angle = float(np.degrees(np.arccos(min(1.0, cosine))))
+    return {"object_extent_m": [round(float(v), 4) for v in extent], "closing_to_long_deg": round(angle, 1)}
+
+
 def snapshot(cell):
     d = cell.data
     return d.qpos.copy(), d.qvel.copy(), d.act.copy(), d.ctrl.copy(), d.time
@@ -46,7 +73,7 @@ def set_full_state(cell, state):
     mujoco.mj_forward(cell.model, cell.data)
 
 
-def _try_alternatives(cell, before, ask, grasps, start, count, remaining, table, record):
+def _try_alternatives(cell, before, ask, grasps, start, count, remaining, table, record, close_speed_m_s):
     """Up to `count` reachable grasps from `grasps[start:]`, each run from the
     full state `before` and passed to `record(index, outcome, target)`; the
     state after the caller's own attempt is put back exactly at the end."""
@@ -59,7 +86,7 @@ def _try_alternatives(cell, before, ask, grasps, start, count, remaining, table,
             break
         k = start + answer["grasp_index"]
         target = target_of(cell, grasps[k], remaining)
-        outcome, _ = executor.execute(cell, answer["steps"], target, table)
+        outcome, _ = executor.execute(cell, answer["steps"], target, table, close_speed_m_s)
         start = k + 1
         if outcome != "unreachable-sim":
             record(k, outcome, target)
@@ -83,8 +110,9 @@ def target_of(cell, grasp, remaining):
 
 
 def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, resolution="640x480", noise=False,
-                snapshots=None, recorder=None, alternatives=0):
-    """One episode; returns its record (attempts and counts). With a
+                snapshots=None, recorder=None, alternatives=0, close_speed_m_s=executor.CLOSE_SPEED_M_S):
+    """One episode, the pads closing at `close_speed_m_s`; returns its
+    record (attempts and counts). With a
     `recorder` (attempt_views.Recorder), each tried grasp's view and outcome
     are recorded, and after each attempt up to `alternatives` grasps ranked
     below it are tried from the same state, recorded, and the state put
@@ -159,7 +187,7 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                 target = target_of(cell, grasp, remaining)
                 state = snapshot(cell)
                 before = full_state(cell) if alternatives > 0 else None
-                outcome, details = executor.execute(cell, answer["steps"], target, table)
+                outcome, details = executor.execute(cell, answer["steps"], target, table, close_speed_m_s)
                 if outcome == "unreachable-sim":
                     entry["unreachable"] += 1
                     entry["refused"].append("simulated arm touched " + "; ".join(details["collisions"][:2]))
@@ -172,12 +200,13 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                               "grasp": {"position": [round(v, 4) for v in grasp["position"]],
                                         "orientation": [round(v, 5) for v in grasp["orientation"]]},
                               "target": name_of(target), **details})
+                entry.update(grasp_on_object(grasp, plan["objects"]))
                 if recorder is not None:
                     recorder.add(plan, grasp, chosen, outcome, attempt, False, name_of(target))
                     if alternatives > 0:
                         _try_alternatives(cell, before, ask, grasps, chosen + 1, alternatives, remaining, table,
                                           lambda k, o, t: recorder.add(plan, grasps[k], k, o, attempt, True,
-                                                                       name_of(t)))
+                                                                       name_of(t)), close_speed_m_s)
                 break
             if outcome is None:
                 entry["outcome"] = "unreachable"

@@ -129,27 +129,45 @@ class CellTest(unittest.TestCase):
                 mujoco.mj_step(c.model, c.data)
             self.assertAlmostEqual(gripper.pad_gap(c), width, delta=tolerance, msg=f"commanded {width} m")
 
-    def test_the_pads_close_at_the_bridges_speed(self):
-        """12 cm shut in 12 / 14 of a second, the gap halved halfway (the servo alone: 20 ms)."""
-        c = cell.build([], [])
-        c.set_arm(np.array([0.0, -1.2, 1.6, -1.97, -1.5708, 0.0]))
-        table = gripper.gap_table(c)
-        run = executor.Run(c, None)
-        self.assertTrue(run.open_to(0.12, table))
-        trace, step = [], run.step
+    def test_the_pads_close_at_the_runs_speed(self):
+        """12 cm shut in 12 / 14 of a second at the bridge's speed, in half
+        that at twice it, the gap halved halfway (the servo alone: 20 ms)."""
+        for speed in (executor.CLOSE_SPEED_M_S, 2 * executor.CLOSE_SPEED_M_S):
+            c = cell.build([], [])
+            c.set_arm(np.array([0.0, -1.2, 1.6, -1.97, -1.5708, 0.0]))
+            table = gripper.gap_table(c)
+            run = executor.Run(c, None, close_speed_m_s=speed)
+            self.assertTrue(run.open_to(0.12, table))
+            trace, step = [], run.step
 
-        def traced(n=1):
-            ok = step(n)
-            trace.append((c.data.time, gripper.pad_gap(c)))
-            return ok
+            def traced(n=1, step=step, trace=trace, c=c):
+                ok = step(n)
+                trace.append((c.data.time, gripper.pad_gap(c)))
+                return ok
 
-        run.step = traced
-        start = c.data.time
-        self.assertTrue(run.close(table))
-        shut = next(t for t, g in trace if g < 0.001) - start
-        self.assertAlmostEqual(shut, 0.12 / executor.CLOSE_SPEED_M_S, delta=0.08)
-        halfway = next(g for t, g in trace if t - start >= 0.06 / executor.CLOSE_SPEED_M_S)
-        self.assertAlmostEqual(halfway, 0.06, delta=0.01)
+            run.step = traced
+            start = c.data.time
+            self.assertTrue(run.close(table))
+            shut = next(t for t, g in trace if g < 0.001) - start
+            self.assertAlmostEqual(shut, 0.12 / speed, delta=0.08, msg=f"{speed} m/s")
+            halfway = next(g for t, g in trace if t - start >= 0.06 / speed)
+            self.assertAlmostEqual(halfway, 0.06, delta=0.01, msg=f"{speed} m/s")
+
+    def test_a_grasp_is_described_against_its_objects_long_axis(self):
+        """A top grasp closing across a bar lying along world y is at 90
+        degrees to its long axis, one closing along it at 0; the extent is
+        the planner's box."""
+        turn = math.sqrt(0.5)  # the object frame turned 90 degrees about z: its x along world y
+        bar = {"id": 3, "orientation": [0.0, 0.0, turn, turn], "extent_min_m": [-0.1, -0.02, -0.01],
+               "extent_max_m": [0.1, 0.02, 0.01]}
+        down_x = [1.0, 0.0, 0.0, 0.0]  # x stays, z points down: closing along world x
+        down_y = [turn, turn, 0.0, 0.0]  # x onto world y, z down
+        across = protocol.grasp_on_object({"object": 3, "orientation": down_x}, [bar])
+        self.assertEqual(across["object_extent_m"], [0.2, 0.04, 0.02])
+        self.assertAlmostEqual(across["closing_to_long_deg"], 90.0, places=3)
+        along = protocol.grasp_on_object({"object": 3, "orientation": down_y}, [bar])
+        self.assertAlmostEqual(along["closing_to_long_deg"], 0.0, places=3)
+        self.assertEqual(protocol.grasp_on_object({"object": 4, "orientation": down_x}, [bar]), {})
 
     def test_squeeze_is_the_stated_force(self):
         for width in (0.03, 0.08, 0.12):
