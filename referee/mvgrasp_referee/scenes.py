@@ -39,9 +39,24 @@ def choose_objects(pool_name, scenario, seed, episode):
     count = SCENARIOS[scenario][0]
     rng = np.random.default_rng([seed, episode, 7])
     if scenario == "isolated":
-        return [objects[(seed * 7919 + episode) % len(objects)]] if pool_name != "test-b" \
-            else [objects[episode % len(objects)]]
-    return [objects[i] for i in rng.choice(len(objects), size=count, replace=len(objects) < count)]
+        drawn = [(seed * 7919 + episode) % len(objects)] if pool_name != "test-b" else [episode % len(objects)]
+    else:
+        drawn = [int(i) for i in rng.choice(len(objects), size=count, replace=len(objects) < count)]
+    return [objects[i] for i in _pickable(objects, drawn)]
+
+
+def _pickable(objects, drawn):
+    """`drawn` with each mesh too thin to pick (`pools.TOO_THIN`) replaced by
+    the next one of the pool that is neither too thin nor drawn already;
+    every other index as drawn."""
+    out = []
+    for i in drawn:
+        while objects[i].name in pools.TOO_THIN:
+            i = (i + 1) % len(objects)
+            while i in drawn or i in out:
+                i = (i + 1) % len(objects)
+        out.append(i)
+    return out
 
 
 def _radius(body):

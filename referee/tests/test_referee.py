@@ -35,6 +35,30 @@ class SplitTest(unittest.TestCase):
                          {f"random_urdfs/{i:03d}/{i:03d}.obj" for i in range(800, 1000)})
         self.assertEqual(len(pools.pool("test-b")), 15)
 
+    def test_the_plates_too_thin_to_pick_are_the_meshes_under_two_millimetres(self):
+        thinnest = {}
+        for spec in pools.pool("train") + pools.pool("test-a"):
+            with open(os.path.join(assets.pybullet_data(), spec.path)) as f:
+                v = np.array([[float(x) for x in line.split()[1:4]] for line in f if line.startswith("v ")])
+            thinnest[spec.name] = float(np.ptp(v * spec.scale, axis=0).min())
+        self.assertEqual({n for n, t in thinnest.items() if t < pools.THINNEST_PICKABLE_M}, pools.TOO_THIN)
+        self.assertGreater(min(t for n, t in thinnest.items() if n not in pools.TOO_THIN), 0.007)
+
+    def test_episodes_draw_the_next_mesh_in_place_of_a_plate(self):
+        # Train seed 2027's third packed episode drew plate 295 beside four others.
+        packed = [o.name for o in scenes.choose_objects("train", "packed", 2027, 3)]
+        self.assertEqual(packed, ["random_296", "random_228", "random_382", "random_795", "random_289"])
+        drawn = 0
+        for pool in ("train", "test-a"):
+            for scenario in ("isolated", "packed", "pile"):
+                for seed in range(2026, 2032):
+                    for episode in range(60):
+                        names = [o.name for o in scenes.choose_objects(pool, scenario, seed, episode)]
+                        self.assertFalse(pools.TOO_THIN & set(names), (pool, scenario, seed, episode))
+                        self.assertEqual(len(set(names)), len(names), (pool, scenario, seed, episode))
+                        drawn += len(names)
+        self.assertEqual(drawn, 2 * 6 * 60 * (1 + 5 + 5))
+
     def test_an_unknown_pool_is_refused(self):
         with self.assertRaisesRegex(ValueError, "unknown pool"):
             pools.pool("test-c")
