@@ -134,8 +134,8 @@ impl AroundApproach {
         let (lo, hi) = (self.paths.lo.map(|v| v as f32), self.paths.hi.map(|v| v as f32));
         // Every point is written and only those in the paths are kept (the
         // count advances on them): no branch on the test, which follows no
-        // pattern a predictor learns.
-        along.clear();
+        // pattern a predictor learns. Only `along[..kept]` is read, so what
+        // an earlier turn left beyond it needs no clearing.
         along.resize(self.near.len(), 0.0);
         let mut kept = 0;
         for &[x, y] in &self.near {
