@@ -26,6 +26,16 @@ def quat_xyzw(rotation):
     return [q[1], q[2], q[3], q[0]]
 
 
+def matrix_xyzw(quaternion):
+    """A quaternion (x, y, z, w) as a rotation matrix (`quat_xyzw`'s inverse)."""
+    import mujoco  # noqa: PLC0415
+
+    x, y, z, w = quaternion
+    m = np.zeros(9)
+    mujoco.mju_quat2Mat(m, np.array([w, x, y, z], float))
+    return m.reshape(3, 3)
+
+
 def config_toml(tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_M, approach_clearance_m=None):
     """The bridge's settings for this cell (robot-bridge/bridge.toml's keys);
     `fingertip_travel` as `gripper.fingertip_travel` gives it (empty: a rigid
@@ -72,16 +82,11 @@ class Bridge:
 
     def fk(self, q):
         """base_from_flange (4x4) by the bridge's kinematics."""
-        import mujoco  # noqa: PLC0415
-
         answer = self.ask({"fk": [float(v) for v in q]})
         if not answer["ok"]:
             raise RuntimeError(answer["error"])
-        x, y, z, w = answer["orientation"]
-        m = np.zeros(9)
-        mujoco.mju_quat2Mat(m, np.array([w, x, y, z]))
         t = np.eye(4)
-        t[:3, :3] = m.reshape(3, 3)
+        t[:3, :3] = matrix_xyzw(answer["orientation"])
         t[:3, 3] = answer["position"]
         return t
 

@@ -16,16 +16,10 @@ import numpy as np
 from . import camera as cammod
 from . import cell as cellmod
 from . import executor, gripper, scenes
+from .bridge import matrix_xyzw
 from .planner import REFUSALS, bridge_scene
 
 MAX_GRASPS_TRIED = 10
-
-
-def _matrix_xyzw(q):
-    x, y, z, w = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
 def grasp_on_object(grasp, objects):
@@ -38,8 +32,8 @@ def grasp_on_object(grasp, objects):
     if obj is None:
         return {}
     extent = np.subtract(obj["extent_max_m"], obj["extent_min_m"])
-    closing = _matrix_xyzw(grasp["orientation"])[:, 0]
-    long_axis = _matrix_xyzw(obj["orientation"])[:, 0]
+    closing = matrix_xyzw(grasp["orientation"])[:, 0]
+    long_axis = matrix_xyzw(obj["orientation"])[:, 0]
     across = np.hypot(closing[0], closing[1])
     angle = 90.0
     if across > 1e-9:
