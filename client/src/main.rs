@@ -256,6 +256,8 @@ fn print_table(r: &pb::PlanGraspsResponse) {
             pb::ViewAxis::Top => "top",
             pb::ViewAxis::Front => "front",
             pb::ViewAxis::Side => "side",
+            pb::ViewAxis::TopFront => "top_front",
+            pb::ViewAxis::TopSide => "top_side",
             pb::ViewAxis::Unspecified => "?",
         });
         println!(

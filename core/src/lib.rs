@@ -68,4 +68,4 @@ pub use pipeline::{
 pub use segment::{ClusterConfig, CreaseConfig, Reattach, TableConfig, TablePlane};
 pub use select::ViewPolicy;
 pub use sensor::{CloudFrame, DepthEncoding, DepthFrame, FieldOfView, Intrinsics, PointCloud, SensorInput};
-pub use view::{OrthoView, ViewAxis};
+pub use view::{OBLIQUE_TILT_DEG, OrthoView, ViewAxis};

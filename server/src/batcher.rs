@@ -7,6 +7,12 @@
 //! request never pays `max_wait`. A request's views are never split across
 //! calls. Requests whose caller has gone, or whose deadline has
 //! passed, are dropped before they reach the network.
+//!
+//! A batch of one request while no other call is in flight (the
+//! `in_flight_requests` gauge) runs on the lone network when there is one:
+//! the same file with more threads (`model.lone_call_threads`), as no
+//! other call needs the cores; every other batch on the network with
+//! `intra_threads`, leaving the rest of the cores to other calls' CPU stages.
 
 use std::{
     sync::{
@@ -63,13 +69,20 @@ impl std::fmt::Debug for Batcher {
 }
 
 impl Batcher {
-    /// Starts the worker thread that owns `net`. It stops when every `Batcher` is dropped.
-    pub fn spawn(net: Box<dyn GraspNet + Send>, limits: BatchLimits, metrics: Arc<Metrics>) -> Result<Self> {
+    /// Starts the worker thread that owns `net` (and `lone`, for a call
+    /// that has the server to itself). It stops when every `Batcher` is dropped.
+    pub fn spawn(
+        net: Box<dyn GraspNet + Send>,
+        lone: Option<Box<dyn GraspNet + Send>>,
+        limits: BatchLimits,
+        metrics: Arc<Metrics>,
+    ) -> Result<Self> {
         let (tx, rx) = mpsc::channel();
         let queued_views = Arc::new(AtomicUsize::new(0));
         let preparing = Arc::new(AtomicUsize::new(0));
         let worker = Worker {
             net,
+            lone,
             jobs: rx,
             carried: None,
             queued_views: Arc::clone(&queued_views),
@@ -148,6 +161,7 @@ impl Drop for Preparing {
 
 struct Worker {
     net: Box<dyn GraspNet + Send>,
+    lone: Option<Box<dyn GraspNet + Send>>,
     jobs: mpsc::Receiver<Job>,
     /// A job that did not fit the previous batch.
     carried: Option<Job>,
@@ -236,8 +250,12 @@ impl Worker {
         }
         self.metrics.batch_views.observe(total as f64);
         self.metrics.batch_requests.observe(live.len() as f64);
-        let result = self
-            .net
+        let alone = live.len() == 1 && self.metrics.in_flight.get() <= 1;
+        let net = match &mut self.lone {
+            Some(lone) if alone => lone,
+            _ => &mut self.net,
+        };
+        let result = net
             .infer(&batch)
             .and_then(|maps| maps.check_matches(&batch).map(|()| maps));
         self.release(total);
@@ -319,7 +337,7 @@ mod tests {
             max_wait: Duration::from_millis(50),
             max_queued_views: 64,
         };
-        let batcher = Batcher::spawn(Box::new(net), limits, Arc::new(Metrics::new().unwrap())).unwrap();
+        let batcher = Batcher::spawn(Box::new(net), None, limits, Arc::new(Metrics::new().unwrap())).unwrap();
         let mut tasks = Vec::new();
         for k in 0..6 {
             let b = batcher.clone();
@@ -343,6 +361,53 @@ mod tests {
         );
     }
 
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_call_alone_in_the_server_runs_on_the_lone_network() {
+        let recording = || {
+            let calls = Arc::new(Mutex::new(Vec::new()));
+            let net = Recording {
+                inner: MomentsNet::default(),
+                calls: Arc::clone(&calls),
+            };
+            (Box::new(net) as Box<dyn GraspNet + Send>, calls)
+        };
+        let ((busy, busy_calls), (lone, lone_calls)) = (recording(), recording());
+        let limits = BatchLimits {
+            max_batch_views: 8,
+            max_wait: Duration::from_secs(10),
+            max_queued_views: 64,
+        };
+        let metrics = Arc::new(Metrics::new().unwrap());
+        let batcher = Batcher::spawn(busy, Some(lone), limits, Arc::clone(&metrics)).unwrap();
+        // The service counts its calls in flight; this one is alone.
+        metrics.in_flight.set(1);
+        let batch = views(3, 0.0);
+        let (maps, _) = batcher.infer(batch.clone(), None).await.unwrap();
+        assert_eq!(maps, MomentsNet::default().infer(&batch).unwrap());
+        assert_eq!(*lone_calls.lock().unwrap(), [3]);
+        assert!(busy_calls.lock().unwrap().is_empty());
+        // Another call in flight (in its CPU stages, say): the lone call's
+        // batch leaves it the other cores.
+        metrics.in_flight.set(2);
+        batcher.infer(views(2, 0.0), None).await.unwrap();
+        assert_eq!(*busy_calls.lock().unwrap(), [2]);
+        // Requests sharing a call are never alone.
+        metrics.in_flight.set(1);
+        let preparing = batcher.preparing();
+        let (a, b) = (batcher.clone(), batcher.clone());
+        let first = tokio::spawn(async move { a.infer(views(1, 0.0), None).await });
+        let second = tokio::spawn(async move { b.infer(views(1, 0.1), None).await });
+        // The worker holds the first for company while a call prepares.
+        while batcher.queued_views.load(Ordering::SeqCst) < 2 {
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+        drop(preparing);
+        first.await.unwrap().unwrap();
+        second.await.unwrap().unwrap();
+        assert_eq!(*busy_calls.lock().unwrap(), [2, 2], "one shared call of both");
+        assert_eq!(*lone_calls.lock().unwrap(), [3]);
+    }
+
     #[tokio::test]
     async fn expired_and_oversized_work_is_refused() {
         let limits = BatchLimits {
@@ -351,7 +416,13 @@ mod tests {
             max_queued_views: 4,
         };
         let metrics = Arc::new(Metrics::new().unwrap());
-        let batcher = Batcher::spawn(Box::new(MomentsNet::default()), limits, Arc::clone(&metrics)).unwrap();
+        let batcher = Batcher::spawn(
+            Box::new(MomentsNet::default()),
+            None,
+            limits,
+            Arc::clone(&metrics),
+        )
+        .unwrap();
         let past = Instant::now().checked_sub(Duration::from_millis(1));
         let err = batcher.infer(views(1, 0.0), past).await.unwrap_err();
         assert!(matches!(err, Error::DeadlineExceeded { .. }), "{err}");

@@ -216,6 +216,8 @@ fn axis_message(axis: ViewAxis) -> pb::ViewAxis {
         ViewAxis::Top => pb::ViewAxis::Top,
         ViewAxis::Front => pb::ViewAxis::Front,
         ViewAxis::Side => pb::ViewAxis::Side,
+        ViewAxis::TopFront => pb::ViewAxis::TopFront,
+        ViewAxis::TopSide => pb::ViewAxis::TopSide,
     }
 }
 

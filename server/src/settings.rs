@@ -54,6 +54,10 @@ pub struct ModelSettings {
     pub device: Device,
     /// Threads ONNX Runtime uses inside one network call.
     pub intra_threads: usize,
+    /// Threads for a call that has the server to itself (one call in
+    /// flight): a second session of the same file (CPU only; at or under
+    /// `intra_threads`, none).
+    pub lone_call_threads: usize,
     /// Let ONNX Runtime's threads spin between calls (lower latency when the
     /// cores are otherwise idle; steals them from the CPU stages when not).
     pub spin_wait: bool,
@@ -69,6 +73,7 @@ impl Default for ModelSettings {
             onnxruntime_library: None,
             device: Device::Cpu,
             intra_threads: 1,
+            lone_call_threads: 2,
             spin_wait: true,
             cuda_conv_search: ConvSearch::Exhaustive,
         }
@@ -188,6 +193,46 @@ impl Default for DecodeSettings {
     }
 }
 
+/// Which virtual views of each object the planner renders (`core::view`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ViewSettings {
+    /// View names (`top`, `front`, `side`, `top_front`, `top_side`), in the
+    /// order ties in entropy are broken.
+    pub axes: Vec<String>,
+}
+
+impl Default for ViewSettings {
+    fn default() -> Self {
+        Self {
+            axes: mvgrasp_core::PlannerConfig::default()
+                .views
+                .iter()
+                .map(|a| a.name().to_owned())
+                .collect(),
+        }
+    }
+}
+
+impl ViewSettings {
+    /// The named views, or the first name that is unknown or repeated.
+    pub fn parse(&self) -> Result<Vec<mvgrasp_core::ViewAxis>, String> {
+        let mut axes = Vec::with_capacity(self.axes.len());
+        for name in &self.axes {
+            let axis = mvgrasp_core::ViewAxis::from_name(name)
+                .ok_or_else(|| format!("unknown view {name:?} (top, front, side, top_front, top_side)"))?;
+            if axes.contains(&axis) {
+                return Err(format!("view {name:?} is named twice"));
+            }
+            axes.push(axis);
+        }
+        if axes.is_empty() {
+            return Err("at least one view is needed".into());
+        }
+        Ok(axes)
+    }
+}
+
 /// Transport security and who may plan (`[security]`; all optional: by
 /// default the gRPC port is plaintext and open, for a trusted network).
 #[derive(Debug, Clone, PartialEq, Default, Deserialize)]
@@ -229,6 +274,8 @@ pub struct Settings {
     pub segment: SegmentSettings,
     /// Decoding and ranking.
     pub decode: DecodeSettings,
+    /// Which views are rendered.
+    pub views: ViewSettings,
     /// TLS, mutual TLS, bearer token, the plaintext health port.
     pub security: SecuritySettings,
     /// How long SIGTERM waits for in-flight calls before closing (s).
@@ -246,6 +293,7 @@ impl Default for Settings {
             defaults: RequestDefaults::default(),
             segment: SegmentSettings::default(),
             decode: DecodeSettings::default(),
+            views: ViewSettings::default(),
             security: SecuritySettings::default(),
             shutdown_grace_s: 10.0,
         }
@@ -282,6 +330,9 @@ pub struct Overrides {
     /// ONNX Runtime threads per network call.
     #[arg(long, env = "MVGRASP_INTRA_THREADS")]
     pub intra_threads: Option<usize>,
+    /// ONNX Runtime threads for a network call that has the server to itself.
+    #[arg(long, env = "MVGRASP_LONE_CALL_THREADS")]
+    pub lone_call_threads: Option<usize>,
     /// Let ONNX Runtime's threads spin between calls.
     #[arg(long, env = "MVGRASP_SPIN_WAIT")]
     pub spin_wait: Option<bool>,
@@ -358,6 +409,9 @@ impl Settings {
         if let Some(v) = o.intra_threads {
             self.model.intra_threads = v;
         }
+        if let Some(v) = o.lone_call_threads {
+            self.model.lone_call_threads = v;
+        }
         if let Some(v) = o.spin_wait {
             self.model.spin_wait = v;
         }
@@ -430,6 +484,12 @@ impl Settings {
                 format!("{} is not in 1..=64", self.model.intra_threads),
             );
         }
+        if !(1..=64).contains(&self.model.lone_call_threads) {
+            return bad(
+                "model.lone_call_threads",
+                format!("{} is not in 1..=64", self.model.lone_call_threads),
+            );
+        }
         let q = self.defaults.min_quality;
         if !(q.is_finite() && (0.0..=1.0).contains(&q)) {
             return bad("defaults.min_quality", format!("{q} is not in [0, 1]"));
@@ -447,6 +507,9 @@ impl Settings {
         let t = self.segment.tolerance_m;
         if !(t.is_finite() && (0.001..=0.1).contains(&t)) {
             return bad("segment.tolerance_m", format!("{t} is not in [0.001, 0.1]"));
+        }
+        if let Err(why) = self.views.parse() {
+            return bad("views.axes", why);
         }
         if self.defaults.max_grasps == 0 {
             return bad("defaults.max_grasps", "must be > 0".into());
@@ -470,7 +533,7 @@ impl Settings {
         Ok(())
     }
 
-    /// The planner's settings: its defaults with `[segment]` and `[decode]` applied.
+    /// The planner's settings: its defaults with `[segment]`, `[decode]` and `[views]` applied.
     pub fn planner_config(&self) -> mvgrasp_core::PlannerConfig {
         let mut config = mvgrasp_core::PlannerConfig::default();
         config.cluster.tolerance_m = self.segment.tolerance_m;
@@ -480,6 +543,9 @@ impl Settings {
             .then(mvgrasp_core::CreaseConfig::default);
         config.decode.centre_weight = self.decode.centre_weight;
         config.decode.peaks_per_view = self.decode.peaks_per_view;
+        if let Ok(views) = self.views.parse() {
+            config.views = views;
+        }
         config
     }
 
@@ -512,6 +578,32 @@ mod tests {
         assert_eq!(s.batching.max_wait_ms, 5.0);
         assert_eq!(s.metrics_listen, None);
         s.validate().unwrap();
+    }
+
+    #[test]
+    fn views_are_named_in_the_file_and_checked() {
+        use mvgrasp_core::ViewAxis;
+        let s = Settings::from_toml("").unwrap();
+        assert_eq!(
+            s.planner_config().views,
+            ViewAxis::ALL.to_vec(),
+            "the paper's three by default"
+        );
+        let s = Settings::from_toml("[views]\naxes = [\"top\", \"top_front\", \"top_side\"]\n").unwrap();
+        s.validate().unwrap();
+        assert_eq!(
+            s.planner_config().views,
+            [ViewAxis::Top, ViewAxis::TopFront, ViewAxis::TopSide]
+        );
+        for (axes, why) in [
+            ("[\"top\", \"diagonal\"]", "unknown view \"diagonal\""),
+            ("[\"side\", \"side\"]", "named twice"),
+            ("[]", "at least one view"),
+        ] {
+            let s = Settings::from_toml(&format!("[views]\naxes = {axes}\n")).unwrap();
+            let err = s.validate().unwrap_err().to_string();
+            assert!(err.contains("views.axes") && err.contains(why), "{axes}: {err}");
+        }
     }
 
     #[test]
@@ -593,5 +685,20 @@ mod tests {
                 .to_string()
                 .contains("decode.peaks_per_view")
         );
+    }
+
+    #[test]
+    fn lone_call_threads_are_read_overridden_and_checked() {
+        let mut s = Settings::from_toml("[model]\nlone_call_threads = 4\n").unwrap();
+        assert_eq!(s.model.lone_call_threads, 4);
+        s.apply(&Overrides {
+            lone_call_threads: Some(1),
+            ..Default::default()
+        });
+        assert_eq!(s.model.lone_call_threads, 1);
+        s.validate().unwrap();
+        s.model.lone_call_threads = 0;
+        let err = s.validate().unwrap_err().to_string();
+        assert!(err.contains("model.lone_call_threads"), "{err}");
     }
 }

@@ -2,7 +2,7 @@
 
 mod orthographic;
 
-pub use orthographic::{HOLE_FILL_MIN_NEIGHBOURS, OrthoView, ViewAxis};
+pub use orthographic::{HOLE_FILL_MIN_NEIGHBOURS, OBLIQUE_TILT_DEG, OrthoView, ViewAxis};
 
 /// Whether the pixel holding image point `(x, y)` (pixel units, origin at the
 /// top-left corner) is inside an `l x l` view and shows the object.

@@ -9,6 +9,12 @@
 //! | `Top`   | -Z                                          | +X    | -Y |
 //! | `Front` | -X (from the +X side, which faces the camera) | +Y  | -Z |
 //! | `Side`  | -Y or +Y, from whichever side faces the camera | -X or +X | -Z |
+//! | `TopFront` | between `Top` and `Front`, [`OBLIQUE_TILT_DEG`] off -Z | +Y | towards +X and down |
+//! | `TopSide`  | between `Top` and `Side`, [`OBLIQUE_TILT_DEG`] off -Z | as `Side` | towards the camera's Y side and down |
+//!
+//! The oblique views' grasps approach from above, tilted towards the side the
+//! camera saw: inside an approach cone about straight down that refuses
+//! every `Front` and `Side` grasp.
 //!
 //! Pixels have a fixed metric size (the model contract's `pixel_size_m`), so a
 //! width in pixels is a width in metres. Pixel `(u, v)` covers view-frame
@@ -36,6 +42,9 @@ use crate::select::EntropySums;
 /// Empty pixels with at least this many filled 8-neighbours are filled.
 pub const HOLE_FILL_MIN_NEIGHBOURS: usize = 5;
 
+/// How far the oblique views' direction leans from straight down (degrees).
+pub const OBLIQUE_TILT_DEG: f64 = 45.0;
+
 /// Which virtual camera.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum ViewAxis {
@@ -45,11 +54,29 @@ pub enum ViewAxis {
     Front,
     /// Looking along +-Y, at the side facing the camera.
     Side,
+    /// Looking down, leaning [`OBLIQUE_TILT_DEG`] towards `Front`.
+    TopFront,
+    /// Looking down, leaning [`OBLIQUE_TILT_DEG`] towards `Side`.
+    TopSide,
 }
 
 impl ViewAxis {
     /// The paper's three views, in their canonical order.
     pub const ALL: [ViewAxis; 3] = [ViewAxis::Top, ViewAxis::Front, ViewAxis::Side];
+
+    /// Every view the renderer knows: the paper's three, then the oblique two.
+    pub const EVERY: [ViewAxis; 5] = [
+        ViewAxis::Top,
+        ViewAxis::Front,
+        ViewAxis::Side,
+        ViewAxis::TopFront,
+        ViewAxis::TopSide,
+    ];
+
+    /// The view called `name` (as [`ViewAxis::name`] writes it).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::EVERY.into_iter().find(|a| a.name() == name)
+    }
 
     /// Lower-case name, for logs and metrics.
     pub fn name(self) -> &'static str {
@@ -57,6 +84,8 @@ impl ViewAxis {
             Self::Top => "top",
             Self::Front => "front",
             Self::Side => "side",
+            Self::TopFront => "top_front",
+            Self::TopSide => "top_side",
         }
     }
 
@@ -64,11 +93,24 @@ impl ViewAxis {
     /// says which Y side the camera saw; only `Side` depends on it.
     pub fn object_from_view(self, camera_on_plus_y: bool) -> Matrix3<f64> {
         let (x, y, z) = (Vector3::x(), Vector3::y(), Vector3::z());
+        // The oblique views: `Front` or `Side` turned about their image u
+        // axis until they look down, OBLIQUE_TILT_DEG off vertical.
+        let (c, s) = (
+            OBLIQUE_TILT_DEG.to_radians().cos(),
+            OBLIQUE_TILT_DEG.to_radians().sin(),
+        );
+        let lean = |u: Vector3<f64>, towards: Vector3<f64>| {
+            let d = -(towards * s + z * c);
+            (u, d.cross(&u), d)
+        };
         let (u, v, d) = match self {
             Self::Top => (x, -y, -z),
             Self::Front => (y, -z, -x),
             Self::Side if camera_on_plus_y => (-x, -z, -y),
             Self::Side => (x, -z, y),
+            Self::TopFront => lean(y, x),
+            Self::TopSide if camera_on_plus_y => lean(-x, y),
+            Self::TopSide => lean(x, -y),
         };
         Matrix3::from_columns(&[u, v, d])
     }
@@ -134,54 +176,20 @@ impl OrthoView {
         pixel_size_m: f32,
     ) -> Self {
         let object_from_view = axis.object_from_view(camera_on_plus_y);
-        // Every view axis is +- one object axis: a signed permutation, no matrix product.
-        let axis_of = |column: usize| {
-            let c = object_from_view.column(column);
-            let j = c.iamax();
-            (j, c[j].signum() as f32)
-        };
-        let [(ju, su), (jv, sv), (jd, sd)] = [axis_of(0), axis_of(1), axis_of(2)];
         let l = size_px;
-        let inv = 1.0 / pixel_size_m;
-        let half = l as f32 * 0.5;
-        let (su, sv) = (su * inv, sv * inv);
         let mut depth = vec![f32::INFINITY; l * l];
-        // The pixels the extent covers (clamped to the image): every filled
-        // pixel lies in it, as the view axes are signed object axes.
-        let (lo, hi) = extent;
-        let side = l as f32;
-        let span = |j: usize, scale: f32| {
-            let (a, b) = (scale * lo[j] + half, scale * hi[j] + half);
-            (a.min(b), a.max(b))
-        };
-        let (su_span, sv_span) = (span(ju, su), span(jv, sv));
-        // Every point projects inside the image: the per-point test can go.
-        let inside = [su_span, sv_span].iter().all(|&(a, b)| a >= 0.0 && b < side);
-        let pixel_range = |(a, b): (f32, f32)| {
-            let (a, b) = (a.max(0.0), b.min(side - 1.0));
-            (a as usize, b as usize)
-        };
-        let ((u0, u1), (v0, v1)) = (pixel_range(su_span), pixel_range(sv_span));
-        let filled_box = if points_in_object.is_empty() || u0 > u1 || v0 > v1 || l == 0 {
-            PixelBox::EMPTY
-        } else {
-            PixelBox { u0, u1, v0, v1 }
-        };
-        let projection = Projection {
-            su,
-            sv,
-            sd,
-            half,
-            side,
+        let splat = Splat {
+            object_from_view: &object_from_view,
+            points_in_object,
+            extent,
             l,
+            pixel_size_m,
         };
-        // One loop per axis permutation, so the coordinates are fixed loads.
-        match (ju, jv, jd) {
-            (0, 1, 2) => projection.splat::<0, 1, 2>(points_in_object, inside, &mut depth),
-            (1, 2, 0) => projection.splat::<1, 2, 0>(points_in_object, inside, &mut depth),
-            (0, 2, 1) => projection.splat::<0, 2, 1>(points_in_object, inside, &mut depth),
-            _ => projection.splat_any([ju, jv, jd], points_in_object, &mut depth),
-        }
+        let filled_box = if is_signed_permutation(&object_from_view) {
+            splat_permuted(&splat, &mut depth)
+        } else {
+            splat_rotated(&splat, &mut depth)
+        };
         fill_holes(&mut depth, l, &filled_box);
         // Every surface pixel lies in the box (holes are filled inside it):
         // normalise, and sum the entropy, there only.
@@ -247,6 +255,130 @@ impl OrthoView {
             }
         }
         best.is_finite().then_some(best)
+    }
+}
+
+/// Whether every column of `m` is plus or minus one coordinate axis.
+fn is_signed_permutation(m: &Matrix3<f64>) -> bool {
+    m.iter().all(|&x| x == 0.0 || x.abs() == 1.0)
+}
+
+/// What a z-buffer splat draws: points (object frame) in their box, seen
+/// through a view's axes into an `l x l` image of `pixel_size_m` pixels.
+struct Splat<'a> {
+    object_from_view: &'a Matrix3<f64>,
+    points_in_object: &'a [[f32; 3]],
+    extent: ([f32; 3], [f32; 3]),
+    l: usize,
+    pixel_size_m: f32,
+}
+
+/// The z-buffer splat of a view whose axes are signed object axes (the
+/// paper's three): no matrix product. Returns the box of pixels a surface
+/// can fill.
+fn splat_permuted(splat: &Splat<'_>, depth: &mut [f32]) -> PixelBox {
+    let &Splat {
+        object_from_view,
+        points_in_object,
+        extent,
+        l,
+        pixel_size_m,
+    } = splat;
+    // Every view axis is +- one object axis: a signed permutation, no matrix product.
+    let axis_of = |column: usize| {
+        let c = object_from_view.column(column);
+        let j = c.iamax();
+        (j, c[j].signum() as f32)
+    };
+    let [(ju, su), (jv, sv), (jd, sd)] = [axis_of(0), axis_of(1), axis_of(2)];
+    let inv = 1.0 / pixel_size_m;
+    let half = l as f32 * 0.5;
+    let (su, sv) = (su * inv, sv * inv);
+    // The pixels the extent covers (clamped to the image): every filled
+    // pixel lies in it, as the view axes are signed object axes.
+    let (lo, hi) = extent;
+    let side = l as f32;
+    let span = |j: usize, scale: f32| {
+        let (a, b) = (scale * lo[j] + half, scale * hi[j] + half);
+        (a.min(b), a.max(b))
+    };
+    let (su_span, sv_span) = (span(ju, su), span(jv, sv));
+    // Every point projects inside the image: the per-point test can go.
+    let inside = [su_span, sv_span].iter().all(|&(a, b)| a >= 0.0 && b < side);
+    let pixel_range = |(a, b): (f32, f32)| {
+        let (a, b) = (a.max(0.0), b.min(side - 1.0));
+        (a as usize, b as usize)
+    };
+    let ((u0, u1), (v0, v1)) = (pixel_range(su_span), pixel_range(sv_span));
+    let filled_box = if points_in_object.is_empty() || u0 > u1 || v0 > v1 || l == 0 {
+        PixelBox::EMPTY
+    } else {
+        PixelBox { u0, u1, v0, v1 }
+    };
+    let projection = Projection {
+        su,
+        sv,
+        sd,
+        half,
+        side,
+        l,
+    };
+    // One loop per axis permutation, so the coordinates are fixed loads.
+    match (ju, jv, jd) {
+        (0, 1, 2) => projection.splat::<0, 1, 2>(points_in_object, inside, depth),
+        (1, 2, 0) => projection.splat::<1, 2, 0>(points_in_object, inside, depth),
+        (0, 2, 1) => projection.splat::<0, 2, 1>(points_in_object, inside, depth),
+        _ => projection.splat_any([ju, jv, jd], points_in_object, depth),
+    }
+    filled_box
+}
+
+/// The z-buffer splat of an oblique view: each point through the view's
+/// rotation. Returns the box of pixels a surface can fill (the extent's
+/// eight corners' pixels).
+fn splat_rotated(splat: &Splat<'_>, depth: &mut [f32]) -> PixelBox {
+    let l = splat.l;
+    let inv = 1.0 / splat.pixel_size_m;
+    let half = l as f32 * 0.5;
+    let row = |c: usize, scale: f32| {
+        let col = splat.object_from_view.column(c);
+        [
+            col[0] as f32 * scale,
+            col[1] as f32 * scale,
+            col[2] as f32 * scale,
+        ]
+    };
+    let (ru, rv, rd) = (row(0, inv), row(1, inv), row(2, 1.0));
+    let dot = |r: &[f32; 3], p: &[f32; 3]| r[0] * p[0] + r[1] * p[1] + r[2] * p[2];
+    let side = l as f32;
+    for p in splat.points_in_object {
+        let (u, v) = (dot(&ru, p) + half, dot(&rv, p) + half);
+        if !((u >= 0.0) & (v >= 0.0) & (u < side) & (v < side)) {
+            continue;
+        }
+        let cell = &mut depth[(v as usize) * l + u as usize];
+        let z = dot(&rd, p);
+        *cell = if z < *cell { z } else { *cell };
+    }
+    let (lo, hi) = splat.extent;
+    let (mut umin, mut umax, mut vmin, mut vmax) =
+        (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
+    for corner in 0..8 {
+        let p = [0, 1, 2].map(|a| if corner >> a & 1 == 1 { hi[a] } else { lo[a] });
+        let (u, v) = (dot(&ru, &p) + half, dot(&rv, &p) + half);
+        (umin, umax, vmin, vmax) = (umin.min(u), umax.max(u), vmin.min(v), vmax.max(v));
+    }
+    if splat.points_in_object.is_empty() || l == 0 || umax < 0.0 || vmax < 0.0 || umin >= side || vmin >= side
+    {
+        return PixelBox::EMPTY;
+    }
+    // One pixel of slack for the f32 products' rounding.
+    let clamp = |x: f32| x.clamp(0.0, side - 1.0) as usize;
+    PixelBox {
+        u0: clamp(umin - 1.0),
+        u1: clamp(umax + 1.0),
+        v0: clamp(vmin - 1.0),
+        v1: clamp(vmax + 1.0),
     }
 }
 
@@ -371,13 +503,132 @@ mod tests {
 
     #[test]
     fn view_frames_are_right_handed() {
-        for axis in ViewAxis::ALL {
+        for axis in ViewAxis::EVERY {
             for plus_y in [false, true] {
                 let m = axis.object_from_view(plus_y);
                 assert!((m.determinant() - 1.0).abs() < 1e-12, "{axis:?}");
                 assert!((m.transpose() * m - Matrix3::identity()).norm() < 1e-12);
             }
         }
+    }
+
+    #[test]
+    fn oblique_views_look_down_leaning_towards_the_camera_side() {
+        let tilt = OBLIQUE_TILT_DEG.to_radians();
+        for (axis, plus_y, towards) in [
+            (ViewAxis::TopFront, true, Vector3::x()),
+            (ViewAxis::TopFront, false, Vector3::x()),
+            (ViewAxis::TopSide, true, Vector3::y()),
+            (ViewAxis::TopSide, false, -Vector3::y()),
+        ] {
+            let m = axis.object_from_view(plus_y);
+            let d = m.column(2).into_owned();
+            assert!((d.dot(&-Vector3::z()) - tilt.cos()).abs() < 1e-12, "{axis:?}");
+            assert!(
+                (d.dot(&-towards) - tilt.sin()).abs() < 1e-12,
+                "{axis:?} looks from {towards:?}"
+            );
+            assert!(m.column(0).z.abs() < 1e-12, "{axis:?}: image u stays horizontal");
+            assert!(m.column(1).z < 0.0, "{axis:?}: image down is down");
+            assert_eq!(ViewAxis::from_name(axis.name()), Some(axis));
+        }
+        assert_eq!(ViewAxis::from_name("diagonal"), None);
+    }
+
+    /// Points on the faces of a box, 1 mm apart, object frame.
+    fn box_surface(half: [f32; 3]) -> Vec<[f32; 3]> {
+        let mut points = Vec::new();
+        let steps = half.map(|h| (2.0 * h / 0.001).round() as usize);
+        for a in 0..3 {
+            let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+            for sign in [-1.0f32, 1.0] {
+                for i in 0..=steps[b] {
+                    for j in 0..=steps[c] {
+                        let mut p = [0.0; 3];
+                        p[a] = sign * half[a];
+                        p[b] = -half[b] + i as f32 * 0.001;
+                        p[c] = -half[c] + j as f32 * 0.001;
+                        points.push(p);
+                    }
+                }
+            }
+        }
+        points
+    }
+
+    #[test]
+    fn the_rotated_splat_draws_the_paper_views_as_the_permuted_one() {
+        let points = box_surface([0.03, 0.02, 0.045]);
+        let extent = ([-0.03, -0.02, -0.045], [0.03, 0.02, 0.045]);
+        let (l, s) = (48, 0.0025);
+        for axis in ViewAxis::ALL {
+            for plus_y in [false, true] {
+                let m = axis.object_from_view(plus_y);
+                let mut fast = vec![f32::INFINITY; l * l];
+                let mut general = fast.clone();
+                let splat = Splat {
+                    object_from_view: &m,
+                    points_in_object: &points,
+                    extent,
+                    l,
+                    pixel_size_m: s,
+                };
+                let fast_box = splat_permuted(&splat, &mut fast);
+                let general_box = splat_rotated(&splat, &mut general);
+                let filled = |d: &[f32]| d.iter().filter(|z| z.is_finite()).count();
+                assert!(filled(&fast) > 100, "{axis:?}");
+                // Rounding may move a point on a pixel's edge: nearly every pixel agrees.
+                let differ = fast
+                    .iter()
+                    .zip(&general)
+                    .filter(|(a, b)| (*a - *b).abs() > 1e-6)
+                    .count();
+                assert!(differ * 50 < filled(&fast), "{axis:?}: {differ} pixels differ");
+                assert!(
+                    general_box.u0 <= fast_box.u0
+                        && general_box.u1 >= fast_box.u1
+                        && general_box.v0 <= fast_box.v0
+                        && general_box.v1 >= fast_box.v1,
+                    "{axis:?}: the corners' box holds every surface"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn an_oblique_view_of_a_box_sees_its_top_and_its_camera_side() {
+        // A 6 x 4 x 9 cm box (x, y, z), camera on +x: `TopFront` sees the
+        // top (6 cm deep, foreshortened by cos 45) above the +x face (9 cm
+        // high, by sin 45), 4 cm wide.
+        let half = [0.03f32, 0.02, 0.045];
+        let points = box_surface(half);
+        let (l, s) = (72, 0.0025);
+        let view = OrthoView::render(ViewAxis::TopFront, true, &points, l, s);
+        let d = view.object_from_view.column(2).into_owned();
+        let rows: Vec<usize> = (0..l)
+            .filter(|&v| (0..l).any(|u| view.depth_m[v * l + u].is_finite()))
+            .collect();
+        let c = std::f64::consts::FRAC_1_SQRT_2;
+        let expected_rows = (0.06 * c + 0.09 * c) / f64::from(s);
+        assert!(
+            (rows.len() as f64 - expected_rows).abs() <= 2.0,
+            "{} rows, expected {expected_rows:.1}",
+            rows.len()
+        );
+        // Each filled pixel holds the nearest face: no hidden (-x or
+        // bottom) face shows through.
+        for v in 0..l {
+            for u in 0..l {
+                let z = view.depth_m[v * l + u];
+                if z.is_finite() {
+                    let p = view.point_in_object(u as f64 + 0.5, v as f64 + 0.5, f64::from(z));
+                    let on_top = (p.z - 0.045).abs() < 0.003;
+                    let on_front = (p.x - 0.03).abs() < 0.003;
+                    assert!(on_top || on_front, "pixel {u},{v} shows {p:?} (d = {d:?})");
+                }
+            }
+        }
+        assert!(view.entropy > 0.0);
     }
 
     #[test]

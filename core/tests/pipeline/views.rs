@@ -142,3 +142,58 @@ fn an_approach_cone_keeps_only_the_approaches_within_it() {
     assert!(mvgrasp_core::ApproachCone::new(Vector3::z(), 3.2).is_err());
     assert!(mvgrasp_core::ApproachCone::new(Vector3::z(), std::f64::consts::PI).is_ok());
 }
+
+/// The oblique views, when a planner renders them, give grasps that
+/// approach 45 degrees off straight down from the side the camera saw:
+/// inside a 50-degree cone about straight down that refuses every front and
+/// side grasp.
+#[test]
+fn oblique_views_approach_from_above_on_the_camera_side() {
+    use mvgrasp_core::{OBLIQUE_TILT_DEG, ViewAxis};
+    let scene = grid_scene(0.1, 5, 5, 0.12);
+    let camera = Camera::orbit(Vector3::new(0.0, 0.0, 0.1), 0.8, 50.0, -90.0);
+    let config = PlannerConfig {
+        views: ViewAxis::EVERY.to_vec(),
+        ..PlannerConfig::default()
+    };
+    let cone = mvgrasp_core::ApproachCone::new(-Vector3::z(), 50f64.to_radians()).unwrap();
+    let options = PlanOptions {
+        view_policy: ViewPolicy::All,
+        max_grasps: 200,
+        min_quality: 0.1,
+        approach_cone: Some(cone),
+        ..PlanOptions::default()
+    };
+    let (plan, _) = crate::plan_rendered_with(config, &scene, &camera, &options);
+    assert!(
+        plan.outside_approach_cone > 0,
+        "front and side grasps are refused"
+    );
+    let eye = camera.world_from_camera.translation.vector;
+    let mut oblique = 0;
+    for g in &plan.grasps {
+        let a = approach_of(g);
+        match g.view {
+            ViewAxis::TopFront | ViewAxis::TopSide => {
+                oblique += 1;
+                let off_vertical = (-a.z).acos().to_degrees();
+                assert!((off_vertical - OBLIQUE_TILT_DEG).abs() < 1e-6, "{off_vertical}");
+                // Approaching from the camera's side: the approach's
+                // horizontal part points away from the camera.
+                let to_camera = eye - g.world_from_grasp.translation.vector;
+                assert!(a.x * to_camera.x + a.y * to_camera.y < 0.0, "{:?}", g.view);
+            }
+            ViewAxis::Top => assert!(a.z < -0.999),
+            ViewAxis::Front | ViewAxis::Side => panic!("a horizontal grasp passed a 50-degree cone"),
+        }
+    }
+    assert!(oblique > 0, "the oblique views gave grasps");
+    for object in &plan.objects {
+        assert_eq!(object.views.len(), 5);
+        assert!(
+            plan.grasps.iter().any(|g| g.object_id == object.id),
+            "object {}",
+            object.id
+        );
+    }
+}

@@ -15,6 +15,9 @@ use crate::{
 pub struct LoadedNet {
     /// The network.
     pub net: Box<dyn GraspNet + Send>,
+    /// The same network with more threads, for a call that has the server
+    /// to itself (`model.lone_call_threads`; CPU only).
+    pub lone: Option<Box<dyn GraspNet + Send>>,
     /// `onnxruntime-cpu`, `onnxruntime-cuda` or `baseline-moments`.
     pub backend: &'static str,
 }
@@ -24,25 +27,40 @@ impl std::fmt::Debug for LoadedNet {
         f.debug_struct("LoadedNet")
             .field("model_version", &self.net.contract().model_version)
             .field("backend", &self.backend)
+            .field("lone", &self.lone.is_some())
             .finish()
     }
 }
 
 /// Loads the backend that `settings` names. `batch_views` is the most views
 /// the batcher puts in one network call (the CUDA backend runs every call at
-/// that size, see [`OnnxNet::load`]).
+/// that size, see [`OnnxNet::load`]). On the CPU, with `lone_call_threads`
+/// over `intra_threads`, a second session of the file runs with that many
+/// threads.
 pub fn load(settings: &ModelSettings, batch_views: usize) -> Result<LoadedNet> {
     match settings.backend {
         BackendKind::Onnx => {
             let net = OnnxNet::load(settings, batch_views)?;
             let backend = net.provider();
+            let lone = if backend == "onnxruntime-cpu" && settings.lone_call_threads > settings.intra_threads
+            {
+                let wide = ModelSettings {
+                    intra_threads: settings.lone_call_threads,
+                    ..settings.clone()
+                };
+                Some(Box::new(OnnxNet::load(&wide, batch_views)?) as Box<dyn GraspNet + Send>)
+            } else {
+                None
+            };
             Ok(LoadedNet {
                 net: Box::new(net),
+                lone,
                 backend,
             })
         }
         BackendKind::Baseline => Ok(LoadedNet {
             net: Box::new(MomentsNet::default()),
+            lone: None,
             backend: "baseline-moments",
         }),
     }

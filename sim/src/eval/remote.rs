@@ -123,5 +123,7 @@ fn view_axis(axis: pb::ViewAxis) -> Option<ViewAxis> {
         pb::ViewAxis::Top => Some(ViewAxis::Top),
         pb::ViewAxis::Front => Some(ViewAxis::Front),
         pb::ViewAxis::Side => Some(ViewAxis::Side),
+        pb::ViewAxis::TopFront => Some(ViewAxis::TopFront),
+        pb::ViewAxis::TopSide => Some(ViewAxis::TopSide),
     }
 }
