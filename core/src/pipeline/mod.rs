@@ -37,7 +37,7 @@ use crate::select::select_views;
 use crate::sensor::{
     BlockMask, FieldOfView, SensorInput, random_world_points, world_points, world_points_above,
 };
-use crate::view::OrthoView;
+use crate::view::{OrthoView, ViewAxis};
 
 /// Below this many usable random readings the table is fitted on all of them.
 const MIN_RANDOM_POINTS_TO_FIT: usize = 256;
@@ -188,12 +188,20 @@ impl Planner {
         for (index, ((frame, points), views)) in framed.into_iter().zip(rendered).enumerate() {
             let id = index as u32;
             let entropies: Vec<f64> = views.iter().map(|v| v.entropy).collect();
-            let chosen = select_views(options.view_policy, &self.config.views, &entropies, id);
+            let candidates = views_within(options.approach_cone.as_ref(), &frame, &views);
+            let axes: Vec<ViewAxis> = candidates.iter().map(|&v| views[v].axis).collect();
+            let candidate_entropies: Vec<f64> = candidates.iter().map(|&v| entropies[v]).collect();
+            let chosen: Vec<usize> = select_views(options.view_policy, &axes, &candidate_entropies, id)
+                .into_iter()
+                .map(|i| candidates[i])
+                .collect();
             for &v in &chosen {
                 batch.push(&views[v].image);
                 inferred.push((index, v));
             }
-            untried.push(cascade_order(&entropies, &chosen));
+            let mut next = cascade_order(&entropies, &chosen);
+            next.retain(|v| candidates.contains(v));
+            untried.push(next);
             let reports = views
                 .iter()
                 .zip(&entropies)
@@ -527,4 +535,28 @@ impl Stopwatch {
         *slot = now - self.0;
         self.0 = now;
     }
+}
+
+/// The views of an object that may give a grasp within `cone`: a grasp
+/// approaches along its view's direction, whatever turns the hand check
+/// makes about that direction, so a view whose direction lies outside the
+/// cone gives none that passes, and is not worth inferring. Every view when
+/// there is no cone, or when none lies within it (the object is then
+/// planned as without the cone, and its grasps are counted as outside it:
+/// a reason for each).
+fn views_within(cone: Option<&ApproachCone>, frame: &ObjectFrame, views: &[OrthoView]) -> Vec<usize> {
+    let every = || (0..views.len()).collect();
+    let Some(cone) = cone else {
+        return every();
+    };
+    let rotation = frame.world_from_object.rotation.to_rotation_matrix();
+    // A little leeway: the grasps' own check must be the one that refuses.
+    let leeway = ApproachCone {
+        half_angle_rad: (cone.half_angle_rad + 1e-6).min(std::f64::consts::PI),
+        ..*cone
+    };
+    let within: Vec<usize> = (0..views.len())
+        .filter(|&v| leeway.allows(&(rotation * views[v].object_from_view.column(2))))
+        .collect();
+    if within.is_empty() { every() } else { within }
 }

@@ -41,7 +41,9 @@ pub struct PlanOptions {
     /// paper's one pass over the policy's views.
     pub view_cascade: bool,
     /// Only grasps approaching within this cone are planned (the robot's
-    /// reachable approaches); `None`: any.
+    /// reachable approaches); `None`: any. Views whose direction lies
+    /// outside it are not inferred, unless none of an object's views lies
+    /// within it (their grasps approach along that direction).
     pub approach_cone: Option<ApproachCone>,
 }
 

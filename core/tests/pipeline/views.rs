@@ -88,9 +88,11 @@ fn the_view_cascade_tries_the_next_view() {
     }
 }
 
-/// An approach cone keeps only the grasps within it (the rest are counted),
-/// and the view cascade then finds each object a grasp from the views that
-/// approach within the cone.
+/// An approach cone keeps only the grasps within it: the views whose
+/// direction lies outside it are not inferred (none of their grasps could
+/// pass), and each object gets a grasp from the views within it. A cone
+/// that no view lies within plans every object as without it, and counts
+/// each grasp as outside the cone: every object has its reason.
 #[test]
 fn an_approach_cone_keeps_only_the_approaches_within_it() {
     let scene = grid_scene(0.1, 5, 5, 0.12);
@@ -103,15 +105,59 @@ fn an_approach_cone_keeps_only_the_approaches_within_it() {
     };
     let (free, _) = plan_rendered(&scene, &camera, &every);
     assert_eq!(free.outside_approach_cone, 0);
+    assert!(
+        free.objects.iter().all(|o| o.views.iter().all(|v| v.inferred)),
+        "no cone: every view"
+    );
     let from_above =
         mvgrasp_core::ApproachCone::new(Vector3::new(0.0, 0.0, -2.0), 30f64.to_radians()).unwrap();
-    for policy in [ViewPolicy::All, ViewPolicy::Entropy] {
+    for policy in [
+        ViewPolicy::All,
+        ViewPolicy::Entropy,
+        ViewPolicy::Random { seed: 3 },
+    ] {
         let options = PlanOptions {
             view_policy: policy,
             approach_cone: Some(from_above),
             ..every.clone()
         };
         let (plan, _) = plan_rendered(&scene, &camera, &options);
+        assert_eq!(
+            plan.outside_approach_cone, 0,
+            "{policy:?}: no view outside was inferred"
+        );
+        for g in &plan.grasps {
+            assert!(
+                approach_of(g).z <= -(30f64.to_radians().cos()) + 1e-9,
+                "{policy:?}"
+            );
+        }
+        for object in &plan.objects {
+            for view in &object.views {
+                assert_eq!(
+                    view.inferred,
+                    view.axis == mvgrasp_core::ViewAxis::Top,
+                    "{policy:?}: object {} {:?}",
+                    object.id,
+                    view.axis
+                );
+            }
+            assert!(
+                plan.grasps.iter().any(|g| g.object_id == object.id),
+                "{policy:?}: object {} has no grasp from above",
+                object.id
+            );
+        }
+    }
+    let from_below = mvgrasp_core::ApproachCone::new(Vector3::z(), 30f64.to_radians()).unwrap();
+    for policy in [ViewPolicy::All, ViewPolicy::Entropy] {
+        let options = PlanOptions {
+            view_policy: policy,
+            approach_cone: Some(from_below),
+            ..every.clone()
+        };
+        let (plan, _) = plan_rendered(&scene, &camera, &options);
+        assert!(plan.grasps.is_empty(), "{policy:?}");
         assert!(plan.outside_approach_cone > 0, "{policy:?}");
         // Each object accounts for its own losses; they add up to the plan's.
         let sum = |f: fn(&mvgrasp_core::ObjectRefusals) -> usize| -> usize {
@@ -123,17 +169,15 @@ fn an_approach_cone_keeps_only_the_approaches_within_it() {
             plan.refused_for_collision
         );
         assert_eq!(sum(|r| r.table), plan.refusals.table);
-        for g in &plan.grasps {
-            assert!(
-                approach_of(g).z <= -(30f64.to_radians().cos()) + 1e-9,
-                "{policy:?}"
-            );
-        }
         for object in &plan.objects {
             assert!(
-                plan.grasps.iter().any(|g| g.object_id == object.id),
-                "{policy:?}: object {} has no grasp from above",
+                object.refused.outside_approach_cone > 0,
+                "{policy:?}: object {}",
                 object.id
+            );
+            assert!(
+                object.views.iter().all(|v| v.inferred),
+                "{policy:?}: every view tried"
             );
         }
     }
@@ -145,8 +189,8 @@ fn an_approach_cone_keeps_only_the_approaches_within_it() {
 
 /// The oblique views, when a planner renders them, give grasps that
 /// approach 45 degrees off straight down from the side the camera saw:
-/// inside a 50-degree cone about straight down that refuses every front and
-/// side grasp.
+/// inside a 50-degree cone about straight down that no front or side
+/// view's grasp lies within.
 #[test]
 fn oblique_views_approach_from_above_on_the_camera_side() {
     use mvgrasp_core::{OBLIQUE_TILT_DEG, ViewAxis};
@@ -165,9 +209,9 @@ fn oblique_views_approach_from_above_on_the_camera_side() {
         ..PlanOptions::default()
     };
     let (plan, _) = crate::plan_rendered_with(config, &scene, &camera, &options);
-    assert!(
-        plan.outside_approach_cone > 0,
-        "front and side grasps are refused"
+    assert_eq!(
+        plan.outside_approach_cone, 0,
+        "front and side views are not inferred"
     );
     let eye = camera.world_from_camera.translation.vector;
     let mut oblique = 0;
