@@ -252,7 +252,10 @@ impl Worker {
         self.metrics.batch_requests.observe(live.len() as f64);
         let alone = live.len() == 1 && self.metrics.in_flight.get() <= 1;
         let net = match &mut self.lone {
-            Some(lone) if alone => lone,
+            Some(lone) if alone => {
+                self.metrics.lone_network_calls.inc();
+                lone
+            }
             _ => &mut self.net,
         };
         let result = net
@@ -386,6 +389,7 @@ mod tests {
         assert_eq!(maps, MomentsNet::default().infer(&batch).unwrap());
         assert_eq!(*lone_calls.lock().unwrap(), [3]);
         assert!(busy_calls.lock().unwrap().is_empty());
+        assert_eq!(metrics.lone_network_calls.get(), 1);
         // Another call in flight (in its CPU stages, say): the lone call's
         // batch leaves it the other cores.
         metrics.in_flight.set(2);
@@ -406,6 +410,7 @@ mod tests {
         second.await.unwrap().unwrap();
         assert_eq!(*busy_calls.lock().unwrap(), [2, 2], "one shared call of both");
         assert_eq!(*lone_calls.lock().unwrap(), [3]);
+        assert_eq!(metrics.lone_network_calls.get(), 1);
     }
 
     #[tokio::test]

@@ -27,6 +27,9 @@ pub struct Metrics {
     pub batch_views: Histogram,
     /// Requests per network call.
     pub batch_requests: Histogram,
+    /// Network calls run on the lone session (the only call in flight,
+    /// `model.lone_call_threads`).
+    pub lone_network_calls: IntCounter,
     /// Views waiting for the network.
     pub queued_views: IntGauge,
     /// Calls being served.
@@ -174,9 +177,14 @@ impl Metrics {
                 "Planning calls refused for a missing or wrong bearer token",
             )
             .map_err(metric_error)?,
+            lone_network_calls: IntCounter::new(
+                "lone_network_calls_total",
+                "Network calls run on the lone session (the only call in flight)",
+            )
+            .map_err(metric_error)?,
             registry,
         };
-        let collectors: [Box<dyn prometheus::core::Collector>; 20] = [
+        let collectors: [Box<dyn prometheus::core::Collector>; 21] = [
             Box::new(m.requests.clone()),
             Box::new(m.request_seconds.clone()),
             Box::new(m.stage_seconds.clone()),
@@ -197,6 +205,7 @@ impl Metrics {
             Box::new(m.in_flight_limit.clone()),
             Box::new(m.model_info.clone()),
             Box::new(m.unauthenticated.clone()),
+            Box::new(m.lone_network_calls.clone()),
         ];
         for c in collectors {
             m.registry.register(c).map_err(metric_error)?;

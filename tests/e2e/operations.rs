@@ -96,6 +96,7 @@ async fn health_reflection_and_metrics() {
     assert!(metrics.contains("mvgrasp_grasps_out_of_view_total "));
     assert!(metrics.contains("mvgrasp_grasps_turned_square_total "));
     assert!(metrics.contains("mvgrasp_grasps_turned_away_total "));
+    assert!(metrics.contains("mvgrasp_lone_network_calls_total "));
     // One view per object, and the next ones of objects the view cascade sent on.
     assert!(inferred_views >= 18);
     assert_eq!(sample(&metrics, "mvgrasp_batch_views_sum"), inferred_views as f64);
