@@ -219,8 +219,10 @@ impl ViewSettings {
     pub fn parse(&self) -> Result<Vec<mvgrasp_core::ViewAxis>, String> {
         let mut axes = Vec::with_capacity(self.axes.len());
         for name in &self.axes {
-            let axis = mvgrasp_core::ViewAxis::from_name(name)
-                .ok_or_else(|| format!("unknown view {name:?} (top, front, side, top_front, top_side)"))?;
+            let axis = mvgrasp_core::ViewAxis::from_name(name).ok_or_else(|| {
+                let known: Vec<&str> = mvgrasp_core::ViewAxis::EVERY.iter().map(|a| a.name()).collect();
+                format!("unknown view {name:?} ({})", known.join(", "))
+            })?;
             if axes.contains(&axis) {
                 return Err(format!("view {name:?} is named twice"));
             }
@@ -478,17 +480,13 @@ impl Settings {
                 "max_image_pixels, max_cloud_points and max_in_flight must be > 0".into(),
             );
         }
-        if !(1..=64).contains(&self.model.intra_threads) {
-            return bad(
-                "model.intra_threads",
-                format!("{} is not in 1..=64", self.model.intra_threads),
-            );
-        }
-        if !(1..=64).contains(&self.model.lone_call_threads) {
-            return bad(
-                "model.lone_call_threads",
-                format!("{} is not in 1..=64", self.model.lone_call_threads),
-            );
+        for (key, threads) in [
+            ("model.intra_threads", self.model.intra_threads),
+            ("model.lone_call_threads", self.model.lone_call_threads),
+        ] {
+            if !(1..=64).contains(&threads) {
+                return bad(key, format!("{threads} is not in 1..=64"));
+            }
         }
         let q = self.defaults.min_quality;
         if !(q.is_finite() && (0.0..=1.0).contains(&q)) {
