@@ -6,7 +6,8 @@
 BatchNorm is folded into the convolutions first (and the graph is checked to
 hold none); then every transposed convolution is rewritten in its sub-pixel
 form, a 3x3 convolution and a DepthToSpace (`model.subpixel`: the same
-function, measured faster on CPU; `--no-subpixel` keeps ConvTranspose).
+function, measured faster on CPU; `--no-subpixel` keeps ConvTranspose),
+except one whose kernel is its stride (`lite`'s last), kept as it is.
 The batch axis is dynamic, opset 17, and the metadata carries
 the contract `mvgrasp-core` reads (core/src/infer/contract.rs): input size,
 metres per pixel, width scale, normalisation, output order, model and data
@@ -57,8 +58,11 @@ def export(model, size, path, metadata, sub_pixel=True):
     ops = {n.op_type for n in graph.graph.node}
     if "BatchNormalization" in ops:
         raise SystemExit(f"{path}: BatchNormalization left in the graph")
-    if sub_pixel and "ConvTranspose" in ops:
-        raise SystemExit(f"{path}: ConvTranspose left in the sub-pixel graph")
+    overlapping = [n.name for n in graph.graph.node if n.op_type == "ConvTranspose"
+                   and [a.ints for a in n.attribute if a.name == "kernel_shape"]
+                   != [a.ints for a in n.attribute if a.name == "strides"]]
+    if sub_pixel and overlapping:
+        raise SystemExit(f"{path}: ConvTranspose {overlapping} left in the sub-pixel graph")
     del graph.metadata_props[:]
     for key, value in metadata.items():
         entry = graph.metadata_props.add()

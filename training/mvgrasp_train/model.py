@@ -19,6 +19,13 @@ decoder the finer encoder maps. The 1x1 convolutions start at zero, so a
 fresh `skip` network computes what the `narrow` one with the same other
 weights computes, and `train --init` can start it from a `narrow` run.
 
+Variant `lite`: `narrow` with its last transposed convolution 3 x 3 of
+stride 3 instead of 9 x 9: each of the 24 x 24 features paints its own
+3 x 3 output pixels (in sub-pixel form a 1 x 1 convolution), about a
+ninth of that layer's arithmetic and 40% of the whole network's.
+`train --init` starts it from a `narrow` run with each output phase's
+centre tap of the 9 x 9 kernel (`start_lite`), then distils (`--teacher`).
+
 Variant `wide`: `narrow` with twice the channels in every layer (16 ... 64
 ... 16), about 4x its arithmetic, to ask whether the network's size is
 what holds its accuracy (models/RECIPES.md: fine-tunes fit their training views
@@ -31,7 +38,7 @@ training moves their zero weights.
 import torch
 from torch import nn
 
-ARCHITECTURES = ("paper", "narrow", "skip", "wide")
+ARCHITECTURES = ("paper", "narrow", "skip", "wide", "lite")
 
 # `skip`: (block whose output is taken, block after whose output it is added); blocks 0-5 encode, 6-11 decode.
 SKIPS = ((1, 9), (0, 10))
@@ -46,7 +53,7 @@ def layer_shapes(architecture):
     a, b, c = 8 * m, 16 * m, 32 * m
     enc = [(1, a, 9, 3, 3), (a, b, 5, 2, 2), (b, b, 5, 2, 2), (b, c, 3, 1, 1), (c, c, 3, 1, 1), (c, c, 3, 1, 1)]
     dec = [(c, c, 3, 1, 1, 0), (c, c, 3, 1, 1, 0), (c, c, 3, 1, 1, 0), (c, b, 5, 2, 2, 1), (b, c, 5, 2, 2, 1),
-           (c, last, 9, 3, 3, 0)]
+           (c, last, 3, 3, 0, 0) if architecture == "lite" else (c, last, 9, 3, 3, 0)]
     return enc, dec
 
 
@@ -182,21 +189,28 @@ def subpixel(folded):
     output phase r, taps past the kernel being zero. The 3x3 convolution's
     output channel c s^2 + ry s + rx holds phase (ry, rx) of channel c,
     which is the order PixelShuffle (DepthToSpace, mode CRD) expects.
+    A transposed convolution with k = s and no padding (`lite`'s last) is
+    kept: ONNX Runtime runs it in 85% of the time of its sub-pixel form, a
+    1x1 convolution and a DepthToSpace (BENCHMARKS.md).
     """
     layers = []
     for block in folded.body:
         conv = block[0]
         if isinstance(conv, nn.ConvTranspose2d):
             (k, _), (s, _), (p, _), (op, _) = conv.kernel_size, conv.stride, conv.padding, conv.output_padding
-            if p != s or k + op != 3 * s:
-                raise ValueError(f"no sub-pixel form for ConvTranspose2d(k={k}, s={s}, p={p}, op={op})")
             cin, cout = conv.in_channels, conv.out_channels
             w = conv.weight.data  # [cin, cout, k, k]
-            new_w = torch.zeros(cout, s, s, cin, 3, 3)
-            for (ry, rx, ty, tx), (ky, kx) in subpixel_taps(k, s):
-                new_w[:, ry, rx, :, ty, tx] = w[:, :, ky, kx].t()
-            new = nn.Conv2d(cin, cout * s * s, 3, 1, 1, bias=True)
-            new.weight.data = new_w.reshape(cout * s * s, cin, 3, 3)
+            if k == s and p == 0 and op == 0:
+                layers.append(block)  # its own s x s block per input pixel: measured faster as it is
+                continue
+            if p == s and k + op == 3 * s:
+                new_w = torch.zeros(cout, s, s, cin, 3, 3)
+                for (ry, rx, ty, tx), (ky, kx) in subpixel_taps(k, s):
+                    new_w[:, ry, rx, :, ty, tx] = w[:, :, ky, kx].t()
+                new = nn.Conv2d(cin, cout * s * s, 3, 1, 1, bias=True)
+                new.weight.data = new_w.reshape(cout * s * s, cin, 3, 3)
+            else:
+                raise ValueError(f"no sub-pixel form for ConvTranspose2d(k={k}, s={s}, p={p}, op={op})")
             new.bias.data = conv.bias.data.repeat_interleave(s * s)
             layers.append(nn.Sequential(new, nn.PixelShuffle(s), nn.ReLU(inplace=True)))
         else:
@@ -206,3 +220,26 @@ def subpixel(folded):
     out.heads = folded.heads
     out.skips = folded.skips
     return out.eval()
+
+
+def start_lite(model, state):
+    """Loads `state`, a `narrow` network's weights, into the `lite` network
+    `model`: every layer as it is but the last transposed convolution,
+    whose 3 x 3 kernel takes the 9 x 9 one's centre taps (output phase r of
+    pixel q from x[q], w[s + r]: what the narrow layer adds from the
+    feature right under the pixel, without its two neighbours')."""
+    if model.architecture != "lite":
+        raise ValueError(f"start_lite loads into a `lite` network, not {model.architecture!r}")
+    key = f"body.{len(model.body) - 1}.0.weight"
+    own = model.state_dict()
+    if set(own) != set(state):
+        raise ValueError(f"not the same layers: {sorted(set(own) ^ set(state))}")
+    with torch.no_grad():
+        for name, value in state.items():
+            if name == key:
+                s = model.body[-1][0].stride[0]
+                own[name].copy_(value[:, :, s:2 * s, s:2 * s])
+            else:
+                own[name].copy_(value)
+    model.load_state_dict(own)
+    return model

@@ -73,6 +73,19 @@ def read_manifest(d):
     return manifest
 
 
+def episodes(d, size):
+    """Each episode file of the folder `d` in name order: (path of its
+    .npy, its views `[n, size, size]`, its n rows). ValueError when the
+    views and rows disagree."""
+    for npy in sorted(glob.glob(os.path.join(d, "attempts_*.npy"))):
+        v = np.load(npy)
+        with open(npy[:-4] + ".json") as f:
+            rows = json.load(f)
+        if v.shape != (len(rows), size, size):
+            raise ValueError(f"{npy}: views {v.shape} for {len(rows)} rows of {size} px")
+        yield npy, v, rows
+
+
 def load(dirs, failures=NETWORK_FAILURES, alternatives=True):
     """The attempts of one or more `--attempt-views` folders (a list or a
     comma-separated string) that held or whose outcome starts with one of
@@ -91,12 +104,7 @@ def load(dirs, failures=NETWORK_FAILURES, alternatives=True):
         elif theirs != contract:
             raise ValueError(f"{d}: contract {theirs} differs from {contract}")
         size = int(theirs["input_size_px"])
-        for npy in sorted(glob.glob(os.path.join(d, "attempts_*.npy"))):
-            v = np.load(npy)
-            with open(npy[:-4] + ".json") as f:
-                rows = json.load(f)
-            if v.shape != (len(rows), size, size):
-                raise ValueError(f"{npy}: views {v.shape} for {len(rows)} rows of {size} px")
+        for npy, v, rows in episodes(d, size):
             for k, r in enumerate(rows):
                 u, vv = r["pixel"]
                 if not (0 <= u < size and 0 <= vv < size):
@@ -124,11 +132,17 @@ def load(dirs, failures=NETWORK_FAILURES, alternatives=True):
 def check_contract(attempts, contract):
     """Problems (a list of strings) between the attempts' contract and a
     dataset's: the network must read the same views."""
+    return contract_problems(attempts.contract, contract)
+
+
+def contract_problems(theirs, contract):
+    """Problems (a list of strings) between an `--attempt-views` folder's
+    contract `theirs` and a dataset's `contract`."""
     keys = ("input_size_px", "pixel_size_m", "normalisation")
-    return [f"{k}: attempts {attempts.contract.get(k)!r}, data {contract.get(k)!r}"
+    return [f"{k}: attempts {theirs.get(k)!r}, data {contract.get(k)!r}"
             for k in keys
-            if not (np.isclose(attempts.contract.get(k), contract.get(k)) if k == "pixel_size_m"
-                    else attempts.contract.get(k) == contract.get(k))]
+            if not (np.isclose(theirs.get(k), contract.get(k)) if k == "pixel_size_m"
+                    else theirs.get(k) == contract.get(k))]
 
 
 def symmetry(views, pixels, k):

@@ -30,7 +30,7 @@ ones (`sim eval --attempt-alternatives`) unless `--physics-own-only`.
 `--label-weight 0` drops the label
 loss: with `--teacher` the model it starts from, the network then only
 moves where physics says its picks fail or hold.
-`--architecture skip` or `wide` may start from a `narrow` run (`start_from`).
+`--architecture skip`, `wide` or `lite` may start from a `narrow` run (`start_from`).
 Augments each training view (augment.py), with all 8 symmetries of the
 square or, with `--symmetries gravity`, only those that keep the table
 below in front and side views (`augment.symmetry_mask`; the physics
@@ -55,7 +55,7 @@ import numpy as np
 import torch
 
 from . import augment, augment_torch, dataset, metric, physics, runs
-from .model import ARCHITECTURES, GraspNet, squash, train_mode, widen
+from .model import ARCHITECTURES, GraspNet, squash, start_lite, train_mode, widen
 
 
 def progress(done, total, started, extra=""):
@@ -207,6 +207,9 @@ def start_from(model, saved, name):
         return
     if (saved["architecture"], model.architecture) == ("narrow", "wide"):
         widen(model, saved["state_dict"])
+        return
+    if (saved["architecture"], model.architecture) == ("narrow", "lite"):
+        start_lite(model, saved["state_dict"])
         return
     if (saved["architecture"], model.architecture) != ("narrow", "skip"):
         raise SystemExit(f"--init {name} is {saved['architecture']}, not {model.architecture}")

@@ -13,7 +13,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from mvgrasp_train import augment, dataset, evaluate_onnx, metric, pack, physics, physics_score, refusals, repeatability  # noqa: E402
+from mvgrasp_train import attempt_views, augment, dataset, evaluate_onnx, metric, pack, physics, physics_score, refusals, repeatability  # noqa: E402
 
 
 def line_view(l, u0, v0, phi, half):
@@ -716,6 +716,38 @@ class PhysicsAttempts(unittest.TestCase):
         self.assertEqual(int(np.argmax(k)), 3)
         np.testing.assert_allclose(k, k[::-1])
         np.testing.assert_array_equal(physics.gaussian_kernel(0.0), [1.0])  # smoothing off, as in core
+
+
+class AttemptViews(unittest.TestCase):
+    """The views of attempt folders as a label-free dataset to distil on."""
+
+    CONTRACT = {"input_size_px": 8, "pixel_size_m": 0.0025, "normalisation": "cube-v1"}
+
+    def test_every_row_becomes_a_view_that_trains_beside_the_dataset_it_is_like(self):
+        with tempfile.TemporaryDirectory() as d:
+            like, a, b, out = (os.path.join(d, n) for n in ("like", "a", "b", "out"))
+            write_dataset(like)
+            write_attempts(a, PhysicsAttempts.ROWS, contract=self.CONTRACT)
+            write_attempts(b, PhysicsAttempts.ROWS[:2], contract=self.CONTRACT, stem="attempts_isolated_2")
+            attempt_views.main(["--like", like, "--out", out, a, b])
+            ds = dataset.load(out)
+            self.assertEqual(dataset.check(ds), [])
+            # Every row, whatever its outcome, in folder then file order (row k's view is filled with k).
+            np.testing.assert_array_equal(ds.views[:, 0, 0, 0], [0, 1, 2, 3, 4, 5, 0, 1])
+            self.assertEqual((float(np.abs(ds.maps).max()), len(ds.grasps)), (0.0, 0))
+            self.assertEqual({m["instance"] for m in ds.meta}, {"a:attempts_pile_5", "b:attempts_isolated_2"})
+            both = dataset.load(f"{like},{out}")
+            self.assertEqual(len(both.meta), 3 + 8)
+
+    def test_a_folder_the_network_could_not_read_is_refused(self):
+        with tempfile.TemporaryDirectory() as d:
+            like, a = os.path.join(d, "like"), os.path.join(d, "a")
+            write_dataset(like)
+            write_attempts(a, PhysicsAttempts.ROWS, contract={**self.CONTRACT, "pixel_size_m": 0.005})
+            with self.assertRaisesRegex(SystemExit, "pixel_size_m"):
+                attempt_views.main(["--like", like, "--out", os.path.join(d, "out"), a])
+            with self.assertRaisesRegex(SystemExit, "no manifest.json"):
+                attempt_views.main(["--like", like, "--out", os.path.join(d, "out"), d])
 
 
 class PhysicsScore(unittest.TestCase):

@@ -106,7 +106,7 @@ class Network(unittest.TestCase):
     def test_output_is_the_input_size_with_quality_in_0_1(self):
         import torch
         from mvgrasp_train.model import GraspNet
-        for arch in ("paper", "narrow", "skip", "wide"):
+        for arch in ("paper", "narrow", "skip", "wide", "lite"):
             for size in (72, 96):
                 out = GraspNet(arch).eval()(torch.rand(3, 1, size, size))
                 self.assertEqual(tuple(out.shape), (3, 4, size, size))
@@ -173,6 +173,41 @@ class Network(unittest.TestCase):
             self.assertIn("Add", ops)
             views = np.random.default_rng(5).random((3, 1, 48, 48), dtype=np.float32)
             self.assertLess(export.compare(skip, path, views)[0], export.TOLERANCE)
+
+    def test_a_lite_network_starts_from_the_narrow_run_and_exports_its_last_layer_as_it_is(self):
+        import onnx
+        import torch
+        from torch import nn
+        from mvgrasp_train import export
+        from mvgrasp_train.model import GraspNet, fold_batchnorm, start_lite, subpixel
+        from mvgrasp_train.train import start_from
+        narrow = self.trained_a_little("narrow")
+        lite = GraspNet("lite")
+        start_from(lite, {"architecture": "narrow", "state_dict": narrow.state_dict()}, "narrow run")
+        big, small = narrow.body[-1][0].weight, lite.body[-1][0].weight
+        self.assertEqual(tuple(small.shape), (32, 8, 3, 3))
+        self.assertTrue(torch.equal(small, big[:, :, 3:6, 3:6]))  # each phase's centre tap
+        self.assertTrue(torch.equal(lite.heads.weight, narrow.heads.weight))
+        with self.assertRaises(ValueError):
+            start_lite(GraspNet("narrow"), narrow.state_dict())
+        # Trained a little: the sub-pixel form keeps the function and the last layer.
+        lite = self.trained_a_little("lite")
+        folded = fold_batchnorm(lite)
+        fast = subpixel(folded)
+        self.assertEqual(sum(isinstance(m, nn.PixelShuffle) for m in fast.modules()), 5)
+        self.assertEqual(sum(isinstance(m, nn.ConvTranspose2d) for m in fast.modules()), 1)
+        x = torch.rand(2, 1, 48, 48)
+        with torch.no_grad():
+            self.assertLess((folded(x) - fast(x)).abs().max().item(), 1e-5)
+        contract = {"input_size_px": 48, "pixel_size_m": 0.0025, "width_scale_m": 0.2, "normalisation": "cube-v1"}
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "m.onnx")
+            ops = export.export(lite, 48, path, export.contract_metadata(contract, "t-1", "sim-test"))
+            self.assertIn("ConvTranspose", ops)
+            kept = [n for n in onnx.load(path).graph.node if n.op_type == "ConvTranspose"]
+            self.assertEqual([list(a.ints) for a in kept[0].attribute if a.name == "kernel_shape"], [[3, 3]])
+            views = np.random.default_rng(5).random((3, 1, 48, 48), dtype=np.float32)
+            self.assertLess(export.compare(lite, path, views)[0], export.TOLERANCE)
 
     def test_a_wide_network_starts_as_the_narrow_run_it_widens_and_then_learns_with_its_new_channels(self):
         import torch
