@@ -77,7 +77,7 @@ fn sample_frame(c: &mut Criterion) {
         }
     };
     let contract = net.contract().clone();
-    let planner = Planner::new(settings.planner_config(), contract.clone()).expect("planner");
+    let planner = Planner::new(settings.planner_config().expect("views"), contract.clone()).expect("planner");
     let scene = mvgrasp_client::scene::SceneFiles::load_depth(
         &repo.join("samples/table6/depth.png"),
         &repo.join("samples/table6/camera.json"),

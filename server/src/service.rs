@@ -40,8 +40,11 @@ impl PlannerState {
     /// Starts the inference worker for `net` and builds the pipeline for its contract.
     pub fn new(settings: Settings, net: LoadedNet, metrics: Arc<Metrics>) -> Result<Self> {
         let contract = net.net.contract().clone();
-        let planner = Planner::new(settings.planner_config(), contract.clone())
-            .map_err(|e| Error::Startup(format!("pipeline: {e}")))?;
+        let config = settings
+            .planner_config()
+            .map_err(|e| Error::Startup(format!("views.axes: {e}")))?;
+        let planner =
+            Planner::new(config, contract.clone()).map_err(|e| Error::Startup(format!("pipeline: {e}")))?;
         let info = convert::model_info(&contract, net.backend, settings.batching.max_batch_views);
         metrics
             .model_info

@@ -531,8 +531,10 @@ impl Settings {
         Ok(())
     }
 
-    /// The planner's settings: its defaults with `[segment]`, `[decode]` and `[views]` applied.
-    pub fn planner_config(&self) -> mvgrasp_core::PlannerConfig {
+    /// The planner's settings: its defaults with `[segment]`, `[decode]`
+    /// and `[views]` applied; Err with the `[views]` problem `validate`
+    /// reports.
+    pub fn planner_config(&self) -> Result<mvgrasp_core::PlannerConfig, String> {
         let mut config = mvgrasp_core::PlannerConfig::default();
         config.cluster.tolerance_m = self.segment.tolerance_m;
         config.cluster.crease = self
@@ -541,10 +543,8 @@ impl Settings {
             .then(mvgrasp_core::CreaseConfig::default);
         config.decode.centre_weight = self.decode.centre_weight;
         config.decode.peaks_per_view = self.decode.peaks_per_view;
-        if let Ok(views) = self.views.parse() {
-            config.views = views;
-        }
-        config
+        config.views = self.views.parse()?;
+        Ok(config)
     }
 
     /// The number of requests that run CPU stages at once.
@@ -583,14 +583,14 @@ mod tests {
         use mvgrasp_core::ViewAxis;
         let s = Settings::from_toml("").unwrap();
         assert_eq!(
-            s.planner_config().views,
+            s.planner_config().unwrap().views,
             ViewAxis::ALL.to_vec(),
             "the paper's three by default"
         );
         let s = Settings::from_toml("[views]\naxes = [\"top\", \"top_front\", \"top_side\"]\n").unwrap();
         s.validate().unwrap();
         assert_eq!(
-            s.planner_config().views,
+            s.planner_config().unwrap().views,
             [ViewAxis::Top, ViewAxis::TopFront, ViewAxis::TopSide]
         );
         for (axes, why) in [
@@ -601,6 +601,8 @@ mod tests {
             let s = Settings::from_toml(&format!("[views]\naxes = {axes}\n")).unwrap();
             let err = s.validate().unwrap_err().to_string();
             assert!(err.contains("views.axes") && err.contains(why), "{axes}: {err}");
+            let err = s.planner_config().unwrap_err();
+            assert!(err.contains(why), "no default views in place of {axes}: {err}");
         }
     }
 
@@ -655,14 +657,14 @@ mod tests {
 
     #[test]
     fn the_segment_and_decode_sections_reach_the_planner() {
-        let defaults = Settings::default().planner_config();
+        let defaults = Settings::default().planner_config().unwrap();
         assert_eq!(defaults.cluster, mvgrasp_core::ClusterConfig::default());
         assert_eq!(defaults.decode, mvgrasp_core::DecodeConfig::default());
         let s = Settings::from_toml(
             "[segment]\ntolerance_m = 0.02\ncrease_split = true\n[decode]\ncentre_weight = 0.5\npeaks_per_view = 8\n",
         )
         .unwrap();
-        let config = s.planner_config();
+        let config = s.planner_config().unwrap();
         assert_eq!(config.cluster.tolerance_m, 0.02);
         assert_eq!(config.cluster.crease, Some(mvgrasp_core::CreaseConfig::default()));
         assert_eq!(config.decode.centre_weight, 0.5);

@@ -83,7 +83,7 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--onnx", required=True)
     p.add_argument("--architecture", choices=[a for a in ARCHITECTURES if a not in ("skip", "lite")], required=True,
-                   help="the file's network (a `skip` file cannot be read back yet)")
+                   help="the file's network (a `skip` or `lite` file cannot be read back yet)")
     p.add_argument("--out", required=True, help="run folder for model.pt")
     args = p.parse_args(argv)
     model = from_onnx(args.onnx, args.architecture)

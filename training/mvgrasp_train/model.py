@@ -21,8 +21,8 @@ weights computes, and `train --init` can start it from a `narrow` run.
 
 Variant `lite`: `narrow` with its last transposed convolution 3 x 3 of
 stride 3 instead of 9 x 9: each of the 24 x 24 features paints its own
-3 x 3 output pixels (in sub-pixel form a 1 x 1 convolution), about a
-ninth of that layer's arithmetic and 40% of the whole network's.
+3 x 3 output pixels, without its neighbours'. A ninth of that layer's
+arithmetic: 6.7 M multiply-adds per 72 px view against `narrow`'s 17.3 M.
 `train --init` starts it from a `narrow` run with each output phase's
 centre tap of the 9 x 9 kernel (`start_lite`), then distils (`--teacher`).
 
@@ -191,7 +191,8 @@ def subpixel(folded):
     which is the order PixelShuffle (DepthToSpace, mode CRD) expects.
     A transposed convolution with k = s and no padding (`lite`'s last) is
     kept: ONNX Runtime runs it in 85% of the time of its sub-pixel form, a
-    1x1 convolution and a DepthToSpace (BENCHMARKS.md).
+    1x1 convolution and a DepthToSpace
+    (docs/experiments/2026-11-29-lite-network.md).
     """
     layers = []
     for block in folded.body:
