@@ -75,6 +75,9 @@ pub struct RobotSection {
 pub struct PickSection {
     /// Pre-grasp distance back along the approach (m).
     pub pregrasp_m: f64,
+    /// Where no pick works from the pre-grasp, it may move further back in
+    /// 5 cm steps by up to this (m; 0: never; `PickConfig::pregrasp_extra_m`).
+    pub pregrasp_extra_m: f64,
     /// Lift after closing (m).
     pub lift_m: f64,
     /// The lift leans towards the base, up to this angle from the vertical
@@ -182,6 +185,7 @@ impl Default for BridgeConfig {
             },
             pick: PickSection {
                 pregrasp_m: pick.pregrasp_m,
+                pregrasp_extra_m: pick.pregrasp_extra_m,
                 lift_m: pick.lift_m,
                 max_lift_tilt_deg: pick.max_lift_tilt_deg,
                 approach_clearance_m: pick.approach_clearance_m,
@@ -284,6 +288,7 @@ impl BridgeConfig {
         for (field, value, max) in [
             ("pick.approach_clearance_m", self.pick.approach_clearance_m, 0.1),
             ("pick.max_lift_tilt_deg", self.pick.max_lift_tilt_deg, 60.0),
+            ("pick.pregrasp_extra_m", self.pick.pregrasp_extra_m, 0.5),
             ("recovery.unlock_after_s", self.recovery.unlock_after_s, 60.0),
         ] {
             if !(value.is_finite() && (0.0..=max).contains(&value)) {
@@ -315,6 +320,7 @@ impl BridgeConfig {
             flange_from_tcp: self.robot.flange_from_tcp.isometry("robot.flange_from_tcp")?,
             fingertip_travel: self.fingertip_travel()?,
             pregrasp_m: self.pick.pregrasp_m,
+            pregrasp_extra_m: self.pick.pregrasp_extra_m,
             lift_m: self.pick.lift_m,
             max_lift_tilt_deg: self.pick.max_lift_tilt_deg,
             approach_clearance_m: self.pick.approach_clearance_m,
@@ -412,6 +418,8 @@ mod tests {
             ("[recovery]\nunlock_after_s = -1.0\n", "recovery.unlock_after_s"),
             ("[recovery]\nunlock_after_s = nan\n", "recovery.unlock_after_s"),
             ("[pick]\nmax_lift_tilt_deg = 75.0\n", "pick.max_lift_tilt_deg"),
+            ("[pick]\npregrasp_extra_m = 0.6\n", "pick.pregrasp_extra_m"),
+            ("[pick]\npregrasp_extra_m = -0.05\n", "pick.pregrasp_extra_m"),
             (
                 "[pick]\napproach_clearance_m = -0.01\n",
                 "pick.approach_clearance_m",

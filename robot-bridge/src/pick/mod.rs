@@ -15,8 +15,11 @@
 //! hand (fingers and palm) is checked against the cell only, unless
 //! [`PickConfig::check_fingers_near_grasp`] or
 //! [`PickConfig::check_palm_near_grasp`] asks: the planner has checked the
-//! same parts against the points it saw, swept back along the approach. Not
-//! modelled: the object held between the fingers while it is carried.
+//! same parts against the points it saw, swept back along the approach as
+//! far as the pre-grasp. Where the arm at the pre-grasp would touch a box, the
+//! pre-grasp moves further back and the approach beyond the planner's sweep
+//! is checked against every box. Not modelled: the object held between the
+//! fingers while it is carried.
 
 use std::f64::consts::PI;
 
@@ -68,8 +71,18 @@ pub struct PickConfig {
     /// approach, within the 2F-140's 14 cm stroke; the collision checks use
     /// that opening for the whole pick (the fingers are never wider).
     pub approach_clearance_m: f64,
-    /// Pre-grasp distance back along the approach (m).
+    /// Pre-grasp distance back along the approach (m): as far back as the
+    /// planner's hand check swept the hand, so the approach from there is
+    /// checked like the rest near the grasp.
     pub pregrasp_m: f64,
+    /// Where no pick works from the pre-grasp at `pregrasp_m` (the arm there
+    /// touches a box, a taller neighbour's), it may move further back in
+    /// 5 cm steps by up to this much (m; 0: never, the default); the
+    /// approach beyond `pregrasp_m` is then checked like the joint moves,
+    /// against every box. Off by default: on the referee's train pool the
+    /// one grasp it let through hit an object on the way down
+    /// (docs/experiments/2026-11-29-pre-grasp-back.md).
+    pub pregrasp_extra_m: f64,
     /// Lift height after closing (m, world up).
     pub lift_m: f64,
     /// Where a straight-up lift is out of the arm's reach, the lift leans
@@ -120,6 +133,7 @@ impl Default for PickConfig {
             opening_margin_m: mvgrasp_core::DecodeConfig::default().opening_margin_m,
             approach_clearance_m: 0.02,
             pregrasp_m: 0.10,
+            pregrasp_extra_m: 0.0,
             lift_m: 0.15,
             max_lift_tilt_deg: 45.0,
             world_from_drop: Isometry3::from_parts(
@@ -144,6 +158,9 @@ impl Default for PickConfig {
 
 /// The step between the lift's tilts (degrees).
 const LIFT_TILT_STEP_DEG: f64 = 15.0;
+
+/// The step between pre-grasp distances (m).
+const PREGRASP_STEP_M: f64 = 0.05;
 
 /// One step of a pick. Serialised (`robot-bridge plan-jsonl`) with its
 /// kind as a lowercase `kind` tag, without the MoveL target pose.
@@ -194,6 +211,14 @@ impl PickConfig {
     /// How far the fingers open for the approach to a grasp `width_m` wide.
     pub fn approach_opening(&self, width_m: f64) -> f64 {
         (width_m + self.approach_clearance_m).clamp(0.0, 0.14)
+    }
+
+    /// The pre-grasp distances to try in turn (m): `pregrasp_m`, then 5 cm
+    /// steps back by up to `pregrasp_extra_m`.
+    pub fn pregrasp_distances(&self) -> impl Iterator<Item = f64> + use<> {
+        let first = self.pregrasp_m;
+        let steps = (self.pregrasp_extra_m / PREGRASP_STEP_M + 1e-9).floor().max(0.0) as usize;
+        (0..=steps).map(move |k| first + k as f64 * PREGRASP_STEP_M)
     }
 
     /// The lift's tilts from the vertical to try in turn (rad): 0, then

@@ -45,7 +45,15 @@ pub fn plan_pick(
             .clone()
             .with_fingers_against_detected(config.check_fingers_near_grasp)
             .with_palm_against_detected(config.check_palm_near_grasp);
-        match plan_one(arm, config, [&world, &near], grasp, current) {
+        // From the pre-grasp the planner vetted first; further back only
+        // where no pick works from there.
+        let planned = plan_one(arm, config, [&world, &near], grasp, current, false).or_else(|e| match e {
+            Error::Unreachable(_) if config.pregrasp_extra_m > 0.0 => {
+                plan_one(arm, config, [&world, &near], grasp, current, true)
+            }
+            e => Err(e),
+        });
+        match planned {
             Ok(steps) => {
                 return Ok(PickPlan {
                     grasp_index: index,
@@ -60,13 +68,15 @@ pub fn plan_pick(
 }
 
 /// The pick of one grasp; `near` is `world` as the approach and the lift
-/// check it.
+/// check it. The pre-grasp at `pregrasp_m` only, or with `back_further`
+/// also further back by up to `pregrasp_extra_m`.
 fn plan_one(
     arm: &Ur5e,
     config: &PickConfig,
     [world, near]: [&CollisionWorld; 2],
     grasp: &GraspTarget,
     current: &Joints,
+    back_further: bool,
 ) -> Result<Vec<Step>> {
     check_pose("grasp.world_from_grasp", &grasp.world_from_grasp)?;
     if !(grasp.width_m.is_finite() && grasp.width_m >= 0.0) {
@@ -97,26 +107,67 @@ fn plan_one(
             grasp.world_from_grasp * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), flip);
         let approach = world_from_grasp.rotation * Vector3::z();
         let world_from_tcp = Translation3::from(-tips_at_contact * approach) * world_from_grasp;
-        let pre = Isometry3::from_parts(
-            Translation3::from(world_from_tcp.translation.vector - config.pregrasp_m * approach),
-            world_from_tcp.rotation,
-        );
-        let Ok(q_pre) = arm.inverse_nearest(&flange_for(&pre), current) else {
-            continue;
+        let held_back = |distance: f64| {
+            Isometry3::from_parts(
+                Translation3::from(world_from_tcp.translation.vector - distance * approach),
+                world_from_tcp.rotation,
+            )
         };
-        let (q_grasp, approach_path) = match linear(
-            arm,
-            config,
-            near,
-            &flange_for(&pre),
-            &flange_for(&world_from_tcp),
-            &q_pre,
-        ) {
-            Ok(line) => line,
-            Err(e) => {
-                reason = format!("approach: {e}");
+        // The pre-grasp as far back as the planner checked the hand, or
+        // further where the arm there touches a box (a taller neighbour's);
+        // the approach's samples beyond that are checked against every box.
+        let mut approached = None;
+        for distance in config
+            .pregrasp_distances()
+            .take(if back_further { usize::MAX } else { 1 })
+        {
+            let pre = held_back(distance);
+            let near_start = if distance > config.pregrasp_m {
+                held_back(config.pregrasp_m + LINEAR_STEP_M)
+            } else {
+                pre
+            };
+            let Ok(q_pre) = arm.inverse_nearest(&flange_for(&pre), current) else {
+                continue;
+            };
+            if let Some(hit) = world.collision(arm, &q_pre) {
+                reason = format!("pre-grasp: the arm touches `{hit}` up to {distance:.2} m back");
                 continue;
             }
+            let far = if distance > config.pregrasp_m {
+                linear(
+                    arm,
+                    config,
+                    world,
+                    &flange_for(&pre),
+                    &flange_for(&near_start),
+                    &q_pre,
+                )
+            } else {
+                Ok((q_pre, Vec::new()))
+            };
+            let line = far.and_then(|(q_near, mut path)| {
+                let (q_grasp, rest) = linear(
+                    arm,
+                    config,
+                    near,
+                    &flange_for(&near_start),
+                    &flange_for(&world_from_tcp),
+                    &q_near,
+                )?;
+                path.extend(rest);
+                Ok((q_grasp, path))
+            });
+            match line {
+                Ok((q_grasp, path)) => {
+                    approached = Some((q_pre, q_grasp, path));
+                    break;
+                }
+                Err(e) => reason = format!("approach: {e}"),
+            }
+        }
+        let Some((q_pre, q_grasp, approach_path)) = approached else {
+            continue;
         };
         // Straight up; where the arm cannot reach that high (an object at
         // the edge of its reach), leaning towards the base by ever more.
@@ -145,6 +196,12 @@ fn plan_one(
         let Some((lift, q_lift, lift_path)) = lifted else {
             continue;
         };
+        // The joint moves start here; the lift above was checked as the
+        // approach was.
+        if let Some(hit) = world.collision(arm, &q_lift) {
+            reason = format!("lift: the arm at its top touches `{hit}`");
+            continue;
+        }
         // Over the basket the tool's turn about the vertical does not matter:
         // per quarter turn the nearest arm branch (shoulder, elbow, wrist)
         // that is free of collisions, then the nearest quarter turn.
@@ -226,6 +283,9 @@ fn plan_one(
     })
 }
 
+/// The spacing of a linear move's samples (m).
+const LINEAR_STEP_M: f64 = 0.01;
+
 /// Solves a straight flange line from `from` to `to` at 1 cm steps starting
 /// at joints `start` and returns the joints at `to` and the samples after
 /// the start (ending with them); fails if a sample is unreachable, collides,
@@ -240,7 +300,7 @@ fn linear(
     start: &Joints,
 ) -> Result<(Joints, Vec<Joints>)> {
     let distance = (to.translation.vector - from.translation.vector).norm();
-    let samples = ((distance / 0.01).ceil() as usize).max(1);
+    let samples = ((distance / LINEAR_STEP_M).ceil() as usize).max(1);
     let mut q = *start;
     let mut path = Vec::with_capacity(samples);
     for k in 0..=samples {
@@ -270,6 +330,7 @@ fn linear(
 pub(crate) mod tests {
     use super::*;
     use crate::pick::urscript;
+    use nalgebra::Vector2;
 
     /// A top-down grasp 0.45 m in front of the base at table height 0.
     pub(in crate::pick) fn top_grasp(x: f64, y: f64, z: f64) -> GraspTarget {
@@ -617,9 +678,8 @@ pub(crate) mod tests {
         assert!(plan_pick(&arm, &fingers, &[grasp], &scene, &HOME).is_ok());
     }
 
-    #[test]
-    fn near_the_grasp_the_fingers_are_checked_against_the_cell_only_unless_asked() {
-        let arm = Ur5e::default();
+    /// A top-down grasp on object 0, a 4 x 6 x 6 cm box on the table.
+    fn grasp_on_a_small_box() -> (GraspTarget, BoxObstacle) {
         let mut grasp = top_grasp(0.1, -0.45, 0.05);
         grasp.object = Some(0);
         let target = BoxObstacle {
@@ -627,6 +687,13 @@ pub(crate) mod tests {
             world_from_box: Isometry3::translation(0.1, -0.45, 0.03),
             half_extents_m: Vector3::new(0.02, 0.03, 0.03),
         };
+        (grasp, target)
+    }
+
+    #[test]
+    fn near_the_grasp_the_fingers_are_checked_against_the_cell_only_unless_asked() {
+        let arm = Ur5e::default();
+        let (grasp, target) = grasp_on_a_small_box();
         // A 6 cm tall box beside the grasp along the closing direction, 5 cm
         // from its centre: inside a finger (3.5 to 8.3 cm out, margin
         // included), below the linkage (8.7 cm above the fingertips).
@@ -658,6 +725,98 @@ pub(crate) mod tests {
         };
         let err = plan_pick(&arm, &cell, &[grasp], &scene[..1], &HOME).unwrap_err();
         assert!(err.to_string().contains("neighbour"), "{err}");
+    }
+
+    #[test]
+    fn a_pre_grasp_in_a_taller_neighbour_moves_back_along_the_approach_if_asked() {
+        let arm = Ur5e::default();
+        let (grasp, target) = grasp_on_a_small_box();
+        // Beside the grasp along the closing direction, inside a finger's
+        // reach, as tall as `top`.
+        let neighbour = |top: f64| BoxObstacle {
+            name: "neighbour".to_owned(),
+            world_from_box: Isometry3::translation(0.17, -0.45, top / 2.0),
+            half_extents_m: Vector3::new(0.02, 0.03, top / 2.0),
+        };
+        let config = PickConfig {
+            obstacles: vec![table()],
+            pregrasp_extra_m: 0.15,
+            ..PickConfig::default()
+        };
+        let plan = |config: &PickConfig, top: f64| {
+            plan_pick(&arm, config, &[grasp], &[target.clone(), neighbour(top)], &HOME)
+        };
+        // Lower than the fingers 10 cm back: the pre-grasp stays there.
+        let low = plan(&config, 0.14).unwrap();
+        assert!((pre_height(&config, &arm, &low) - 0.15).abs() < 1e-6);
+        // As high as the fingers there: refused with the pre-grasp at 10 cm
+        // only (the default); else the pre-grasp 5 cm further back.
+        let only_10cm = PickConfig {
+            pregrasp_extra_m: PickConfig::default().pregrasp_extra_m,
+            ..config.clone()
+        };
+        assert_eq!(only_10cm.pregrasp_extra_m, 0.0);
+        let err = plan(&only_10cm, 0.16).unwrap_err().to_string();
+        assert!(
+            err.contains("pre-grasp: the arm touches `neighbour` up to 0.10 m back"),
+            "{err}"
+        );
+        let higher = plan(&config, 0.16).unwrap();
+        assert!((pre_height(&config, &arm, &higher) - 0.20).abs() < 1e-6);
+        // The approach from there is one straight line down to the grasp.
+        let Some(Step::MoveL { path, .. }) = higher
+            .steps
+            .iter()
+            .find(|s| matches!(s, Step::MoveL { name: "approach", .. }))
+        else {
+            panic!("no approach");
+        };
+        let tcp = |q: &Joints| {
+            (config.world_from_base * arm.forward(q) * config.flange_from_tcp)
+                .translation
+                .vector
+        };
+        let heights: Vec<f64> = path.iter().map(|q| tcp(q).z).collect();
+        assert!(
+            path.iter()
+                .all(|q| (tcp(q).xy() - Vector2::new(0.1, -0.45)).norm() < 1e-6)
+        );
+        assert!(
+            heights
+                .windows(2)
+                .all(|h| h[1] < h[0] && h[0] - h[1] <= 0.01 + 1e-9),
+            "{heights:?}"
+        );
+        assert!(
+            heights[0] < 0.20 && (heights[heights.len() - 1] - 0.05).abs() < 1e-6,
+            "{heights:?}"
+        );
+        // Taller: the fingers beyond 10 cm back would cross its box.
+        let err = plan(&config, 0.2).unwrap_err().to_string();
+        assert!(err.contains("approach") && err.contains("neighbour"), "{err}");
+        // Taller than every pre-grasp.
+        let err = plan(&config, 0.5).unwrap_err().to_string();
+        assert!(
+            err.contains("pre-grasp: the arm touches `neighbour` up to 0.25 m back"),
+            "{err}"
+        );
+    }
+
+    fn pre_height(config: &PickConfig, arm: &Ur5e, plan: &PickPlan) -> f64 {
+        plan.steps
+            .iter()
+            .find_map(|s| match s {
+                Step::MoveJ {
+                    name: "pre-grasp",
+                    joints,
+                } => Some(
+                    (config.world_from_base * arm.forward(joints) * config.flange_from_tcp)
+                        .translation
+                        .z,
+                ),
+                _ => None,
+            })
+            .unwrap()
     }
 
     #[test]
