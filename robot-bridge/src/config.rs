@@ -78,6 +78,9 @@ pub struct PickSection {
     /// Where no pick works from the pre-grasp, it may move further back in
     /// 5 cm steps by up to this (m; 0: never; `PickConfig::pregrasp_extra_m`).
     pub pregrasp_extra_m: f64,
+    /// Where no pick works from the pre-grasp on the nearest arm branch, try
+    /// the others (`PickConfig::pregrasp_any_branch`).
+    pub pregrasp_any_branch: bool,
     /// Lift after closing (m).
     pub lift_m: f64,
     /// The lift leans towards the base, up to this angle from the vertical
@@ -186,6 +189,7 @@ impl Default for BridgeConfig {
             pick: PickSection {
                 pregrasp_m: pick.pregrasp_m,
                 pregrasp_extra_m: pick.pregrasp_extra_m,
+                pregrasp_any_branch: pick.pregrasp_any_branch,
                 lift_m: pick.lift_m,
                 max_lift_tilt_deg: pick.max_lift_tilt_deg,
                 approach_clearance_m: pick.approach_clearance_m,
@@ -321,6 +325,7 @@ impl BridgeConfig {
             fingertip_travel: self.fingertip_travel()?,
             pregrasp_m: self.pick.pregrasp_m,
             pregrasp_extra_m: self.pick.pregrasp_extra_m,
+            pregrasp_any_branch: self.pick.pregrasp_any_branch,
             lift_m: self.pick.lift_m,
             max_lift_tilt_deg: self.pick.max_lift_tilt_deg,
             approach_clearance_m: self.pick.approach_clearance_m,

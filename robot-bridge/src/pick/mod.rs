@@ -16,10 +16,11 @@
 //! [`PickConfig::check_fingers_near_grasp`] or
 //! [`PickConfig::check_palm_near_grasp`] asks: the planner has checked the
 //! same parts against the points it saw, swept back along the approach as
-//! far as the pre-grasp. Where the arm at the pre-grasp would touch a box, the
-//! pre-grasp moves further back and the approach beyond the planner's sweep
-//! is checked against every box. Not modelled: the object held between the
-//! fingers while it is carried.
+//! far as the pre-grasp. Where no pick works from the pre-grasp on the arm
+//! branch nearest the current joints, the other branches are tried, and, if
+//! asked, pre-grasps further back, the approach beyond the planner's sweep
+//! then checked against every box. Not modelled: the object held between
+//! the fingers while it is carried.
 
 use std::f64::consts::PI;
 
@@ -79,10 +80,12 @@ pub struct PickConfig {
     /// touches a box, a taller neighbour's), it may move further back in
     /// 5 cm steps by up to this much (m; 0: never, the default); the
     /// approach beyond `pregrasp_m` is then checked like the joint moves,
-    /// against every box. Off by default: on the referee's train pool the
-    /// one grasp it let through hit an object on the way down
-    /// (docs/experiments/2026-11-29-pre-grasp-back.md).
+    /// against every box (why it is off: docs/experiments/2026-11-29-pre-grasp-back.md).
     pub pregrasp_extra_m: f64,
+    /// Where no pick works from the pre-grasp on the arm branch nearest the
+    /// current joints (its elbow or shoulder into the table, say), try the
+    /// other branches there too (the approach then follows the branch chosen).
+    pub pregrasp_any_branch: bool,
     /// Lift height after closing (m, world up).
     pub lift_m: f64,
     /// Where a straight-up lift is out of the arm's reach, the lift leans
@@ -134,6 +137,7 @@ impl Default for PickConfig {
             approach_clearance_m: 0.02,
             pregrasp_m: 0.10,
             pregrasp_extra_m: 0.0,
+            pregrasp_any_branch: true,
             lift_m: 0.15,
             max_lift_tilt_deg: 45.0,
             world_from_drop: Isometry3::from_parts(

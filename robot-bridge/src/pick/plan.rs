@@ -45,11 +45,14 @@ pub fn plan_pick(
             .clone()
             .with_fingers_against_detected(config.check_fingers_near_grasp)
             .with_palm_against_detected(config.check_palm_near_grasp);
-        // From the pre-grasp the planner vetted first; further back only
+        // From the pre-grasp the planner vetted, on the arm branch nearest
+        // the current joints, first; other branches and further back only
         // where no pick works from there.
+        let widen = config.pregrasp_any_branch || config.pregrasp_extra_m > 0.0;
         let planned = plan_one(arm, config, [&world, &near], grasp, current, false).or_else(|e| match e {
-            Error::Unreachable(_) if config.pregrasp_extra_m > 0.0 => {
-                plan_one(arm, config, [&world, &near], grasp, current, true)
+            // The first reason stands: why the preferred pick fails.
+            Error::Unreachable(_) if widen => {
+                plan_one(arm, config, [&world, &near], grasp, current, true).map_err(|_| e)
             }
             e => Err(e),
         });
@@ -68,15 +71,16 @@ pub fn plan_pick(
 }
 
 /// The pick of one grasp; `near` is `world` as the approach and the lift
-/// check it. The pre-grasp at `pregrasp_m` only, or with `back_further`
-/// also further back by up to `pregrasp_extra_m`.
+/// check it. The pre-grasp at `pregrasp_m` on the arm branch nearest
+/// `current` only, or with `widen` also on the other branches
+/// (`pregrasp_any_branch`) and further back (`pregrasp_extra_m`).
 fn plan_one(
     arm: &Ur5e,
     config: &PickConfig,
     [world, near]: [&CollisionWorld; 2],
     grasp: &GraspTarget,
     current: &Joints,
-    back_further: bool,
+    widen: bool,
 ) -> Result<Vec<Step>> {
     check_pose("grasp.world_from_grasp", &grasp.world_from_grasp)?;
     if !(grasp.width_m.is_finite() && grasp.width_m >= 0.0) {
@@ -117,9 +121,9 @@ fn plan_one(
         // further where the arm there touches a box (a taller neighbour's);
         // the approach's samples beyond that are checked against every box.
         let mut approached = None;
-        for distance in config
+        'distances: for distance in config
             .pregrasp_distances()
-            .take(if back_further { usize::MAX } else { 1 })
+            .take(if widen { usize::MAX } else { 1 })
         {
             let pre = held_back(distance);
             let near_start = if distance > config.pregrasp_m {
@@ -127,43 +131,50 @@ fn plan_one(
             } else {
                 pre
             };
-            let Ok(q_pre) = arm.inverse_nearest(&flange_for(&pre), current) else {
+            let Ok(branches) = arm.inverse_ranked(&flange_for(&pre), current) else {
                 continue;
             };
-            if let Some(hit) = world.collision(arm, &q_pre) {
-                reason = format!("pre-grasp: the arm touches `{hit}` up to {distance:.2} m back");
-                continue;
-            }
-            let far = if distance > config.pregrasp_m {
-                linear(
-                    arm,
-                    config,
-                    world,
-                    &flange_for(&pre),
-                    &flange_for(&near_start),
-                    &q_pre,
-                )
+            let branches = branches.into_iter().take(if widen && config.pregrasp_any_branch {
+                usize::MAX
             } else {
-                Ok((q_pre, Vec::new()))
-            };
-            let line = far.and_then(|(q_near, mut path)| {
-                let (q_grasp, rest) = linear(
-                    arm,
-                    config,
-                    near,
-                    &flange_for(&near_start),
-                    &flange_for(&world_from_tcp),
-                    &q_near,
-                )?;
-                path.extend(rest);
-                Ok((q_grasp, path))
+                1
             });
-            match line {
-                Ok((q_grasp, path)) => {
-                    approached = Some((q_pre, q_grasp, path));
-                    break;
+            for q_pre in branches {
+                if let Some(hit) = world.collision(arm, &q_pre) {
+                    reason = format!("pre-grasp: the arm touches `{hit}` {distance:.2} m back");
+                    continue;
                 }
-                Err(e) => reason = format!("approach: {e}"),
+                let far = if distance > config.pregrasp_m {
+                    linear(
+                        arm,
+                        config,
+                        world,
+                        &flange_for(&pre),
+                        &flange_for(&near_start),
+                        &q_pre,
+                    )
+                } else {
+                    Ok((q_pre, Vec::new()))
+                };
+                let line = far.and_then(|(q_near, mut path)| {
+                    let (q_grasp, rest) = linear(
+                        arm,
+                        config,
+                        near,
+                        &flange_for(&near_start),
+                        &flange_for(&world_from_tcp),
+                        &q_near,
+                    )?;
+                    path.extend(rest);
+                    Ok((q_grasp, path))
+                });
+                match line {
+                    Ok((q_grasp, path)) => {
+                        approached = Some((q_pre, q_grasp, path));
+                        break 'distances;
+                    }
+                    Err(e) => reason = format!("approach: {e}"),
+                }
             }
         }
         let Some((q_pre, q_grasp, approach_path)) = approached else {
@@ -758,7 +769,7 @@ pub(crate) mod tests {
         assert_eq!(only_10cm.pregrasp_extra_m, 0.0);
         let err = plan(&only_10cm, 0.16).unwrap_err().to_string();
         assert!(
-            err.contains("pre-grasp: the arm touches `neighbour` up to 0.10 m back"),
+            err.contains("pre-grasp: the arm touches `neighbour` 0.10 m back"),
             "{err}"
         );
         let higher = plan(&config, 0.16).unwrap();
@@ -791,32 +802,78 @@ pub(crate) mod tests {
             heights[0] < 0.20 && (heights[heights.len() - 1] - 0.05).abs() < 1e-6,
             "{heights:?}"
         );
-        // Taller: the fingers beyond 10 cm back would cross its box.
-        let err = plan(&config, 0.2).unwrap_err().to_string();
-        assert!(err.contains("approach") && err.contains("neighbour"), "{err}");
-        // Taller than every pre-grasp.
-        let err = plan(&config, 0.5).unwrap_err().to_string();
-        assert!(
-            err.contains("pre-grasp: the arm touches `neighbour` up to 0.25 m back"),
-            "{err}"
-        );
+        // Taller: the fingers beyond 10 cm back would cross its box, or
+        // every pre-grasp touches it; refused for the first pre-grasp.
+        for top in [0.2, 0.5] {
+            let err = plan(&config, top).unwrap_err().to_string();
+            assert!(
+                err.contains("pre-grasp: the arm touches `neighbour` 0.10 m back"),
+                "{err}"
+            );
+        }
     }
 
-    fn pre_height(config: &PickConfig, arm: &Ur5e, plan: &PickPlan) -> f64 {
+    /// The joints of the plan's joint move named `name`.
+    fn move_to(plan: &PickPlan, name: &str) -> Joints {
         plan.steps
             .iter()
             .find_map(|s| match s {
-                Step::MoveJ {
-                    name: "pre-grasp",
-                    joints,
-                } => Some(
-                    (config.world_from_base * arm.forward(joints) * config.flange_from_tcp)
-                        .translation
-                        .z,
-                ),
+                Step::MoveJ { name: n, joints } if *n == name => Some(*joints),
                 _ => None,
             })
-            .unwrap()
+            .unwrap_or_else(|| panic!("no `{name}` move"))
+    }
+
+    fn pre_height(config: &PickConfig, arm: &Ur5e, plan: &PickPlan) -> f64 {
+        let q = move_to(plan, "pre-grasp");
+        (config.world_from_base * arm.forward(&q) * config.flange_from_tcp)
+            .translation
+            .z
+    }
+
+    #[test]
+    fn a_pre_grasp_whose_nearest_arm_branch_hits_the_table_takes_another() {
+        // A referee cell (base at the table's near edge, turned a quarter)
+        // and a top-down grasp 0.77 m from the base, from its parked arm:
+        // the nearest branch swings the shoulder below the horizontal and the
+        // upper arm into the table on the way down.
+        let arm = Ur5e::default();
+        let config = PickConfig {
+            world_from_base: Isometry3::from_parts(
+                Translation3::new(0.0, -0.62, 0.0),
+                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), -PI / 2.0),
+            ),
+            flange_from_tcp: Isometry3::from_parts(
+                Translation3::new(0.0, 0.0, 0.226872),
+                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), PI / 2.0),
+            ),
+            obstacles: vec![table()],
+            ..PickConfig::default()
+        };
+        let grasp = GraspTarget {
+            world_from_grasp: Isometry3::from_parts(
+                Translation3::new(-0.2399, 0.1148, 0.003),
+                UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(0.0, -0.22422, 0.97454, 0.0)),
+            ),
+            width_m: 0.096,
+            quality: 0.8,
+            object: None,
+        };
+        let parked = [-150.0f64, -100.0, 110.0, -100.0, -90.0, 0.0].map(f64::to_radians);
+        let nearest_only = PickConfig {
+            pregrasp_any_branch: false,
+            ..config.clone()
+        };
+        let err = plan_pick(&arm, &nearest_only, &[grasp], &[], &parked)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("approach") && err.contains("`table`"), "{err}");
+        assert!(config.pregrasp_any_branch, "the default");
+        let plan = plan_pick(&arm, &config, &[grasp], &[], &parked).unwrap();
+        // Its pre-grasp on another branch than the nearest one.
+        let q_pre = move_to(&plan, "pre-grasp");
+        let nearest = arm.inverse_nearest(&arm.forward(&q_pre), &parked).unwrap();
+        assert!(max_joint_move(&nearest, &q_pre) > 0.5, "{nearest:?} {q_pre:?}");
     }
 
     #[test]
@@ -897,18 +954,7 @@ pub(crate) mod tests {
             ..PickConfig::default()
         };
         let grasp = top_grasp(-0.35, -0.2, 0.05);
-        let drop_of = |plan: &PickPlan| {
-            plan.steps
-                .iter()
-                .find_map(|s| match s {
-                    Step::MoveJ {
-                        name: "over the basket",
-                        joints,
-                    } => Some(*joints),
-                    _ => None,
-                })
-                .expect("over the basket")
-        };
+        let drop_of = |plan: &PickPlan| move_to(plan, "over the basket");
         let q_drop = drop_of(&plan_pick(&arm, &free, &[grasp], &[], &HOME).unwrap());
         // A post at the middle of that pose's forearm: every quarter turn's
         // nearest branch keeps the forearm there.
