@@ -120,6 +120,16 @@ def approach_cone(pb, axis, half_angle_deg):
                            half_angle_rad=math.radians(half_angle_deg))
 
 
+def arm_reach(pb, shoulder, wrist_back_m, approach_m, max_m, min_axis_m, axis=(0.0, 0.0, 1.0)):
+    """An ArmReach: only grasps whose wrist (wrist_back_m behind the grasp
+    along its approach, and approach_m further back) lies within max_m of
+    `shoulder` (world) and keeps min_axis_m from the base `axis` through it.
+    `robot-bridge plan-jsonl` tells a UR5e's (`{"arm_reach": null}`)."""
+    return pb.ArmReach(shoulder=pb.Vector3(x=shoulder[0], y=shoulder[1], z=shoulder[2]),
+                       axis=pb.Vector3(x=axis[0], y=axis[1], z=axis[2]),
+                       wrist_back_m=wrist_back_m, approach_m=approach_m, max_m=max_m, min_axis_m=min_axis_m)
+
+
 # Calls spread round robin over every address the target names; a unary call
 # that meets an unavailable replica (unreachable, gone mid-call, shutting
 # down) is sent up to twice more, and round robin sends it to the next

@@ -211,6 +211,26 @@ def main():
                   for g in coned_response.grasps),
               str([mvgrasp_client.approach(g.pose.orientation) for g in coned_response.grasps]))
 
+        def reached(shoulder, max_m, min_axis_m):
+            request = mvgrasp_client.plan_request(
+                pb, os.path.join(ROOT, "samples/table6/depth.png"), os.path.join(ROOT, "samples/table6/camera.json"),
+                max_grasps=20, arm_reach=mvgrasp_client.arm_reach(pb, shoulder, 0.33, 0.1, max_m, min_axis_m))
+            return planner.PlanGrasps(request, timeout=30)
+
+        everywhere = reached((0.0, 0.0, 0.16), 5.0, 0.0)
+        plain = planner.PlanGrasps(mvgrasp_client.plan_request(
+            pb, os.path.join(ROOT, "samples/table6/depth.png"), os.path.join(ROOT, "samples/table6/camera.json"),
+            max_grasps=20), timeout=30)
+        check("an arm that reaches every grasp changes nothing",
+              list(everywhere.grasps) == list(plain.grasps) and everywhere.out_of_reach == 0,
+              f"{len(everywhere.grasps)} grasps against {len(plain.grasps)}, {everywhere.out_of_reach} out of reach")
+        nowhere = reached((5.0, 5.0, 0.16), 0.5, 0.13)
+        check("an arm that reaches none: no grasp, each object's candidates counted out of reach",
+              not nowhere.grasps and nowhere.out_of_reach > 0
+              and all(o.refused.out_of_reach > 0 for o in nowhere.objects),
+              f"{len(nowhere.grasps)} grasps, {nowhere.out_of_reach} out of reach, "
+              f"{[o.refused.out_of_reach for o in nowhere.objects]}")
+
         bad = mvgrasp_client.plan_request(
             pb, os.path.join(ROOT, "samples/table6/depth.png"), os.path.join(ROOT, "samples/table6/camera.json"))
         bad.depth.intrinsics.fx = 0

@@ -98,6 +98,19 @@ struct SceneArgs {
     /// in degrees, e.g. `0 0 -1 60` for "from above within 60 degrees".
     #[arg(long, num_args = 4, allow_negative_numbers = true, value_names = ["AX", "AY", "AZ", "HALF_DEG"])]
     approach_cone: Option<Vec<f64>>,
+    /// Only grasps the arm reaches (the planner's `ArmReach`, base axis
+    /// along world z): its shoulder x y z (world, m), the wrist centre's
+    /// distance back from the grasp along the approach, the straight
+    /// approach's length, the wrist's farthest reach from the shoulder and
+    /// its nearest to the base axis (m). `robot-bridge plan-jsonl` tells a
+    /// UR5e's (`{"arm_reach": null}`).
+    #[arg(
+        long,
+        num_args = 7,
+        allow_negative_numbers = true,
+        value_names = ["SX", "SY", "SZ", "WRIST_BACK_M", "APPROACH_M", "MAX_M", "MIN_AXIS_M"]
+    )]
+    arm_reach: Option<Vec<f64>>,
 }
 
 impl SceneArgs {
@@ -135,6 +148,18 @@ impl SceneArgs {
                     z: c[2],
                 }),
                 half_angle_rad: c[3].to_radians(),
+            }),
+            arm_reach: self.arm_reach.as_ref().map(|r| pb::ArmReach {
+                shoulder: Some(pb::Vector3 {
+                    x: r[0],
+                    y: r[1],
+                    z: r[2],
+                }),
+                axis: None,
+                wrist_back_m: r[3],
+                approach_m: r[4],
+                max_m: r[5],
+                min_axis_m: r[6],
             }),
             ..scene.request()
         }
@@ -203,10 +228,13 @@ fn json_of_response(r: &pb::PlanGraspsResponse) -> serde_json::Value {
         "grasps": r.grasps.iter().map(json_of_grasp).collect::<Vec<_>>(),
         "ranked_after_turned_away": r.ranked_after_turned_away,
         "ranked_last_out_of_view": r.ranked_last_out_of_view,
+        "outside_approach_cone": r.outside_approach_cone,
+        "out_of_reach": r.out_of_reach,
         "objects": r.objects.iter().map(|o| {
             let c = o.world_from_object.unwrap_or_default().position.unwrap_or_default();
             serde_json::json!({
                 "id": o.id, "centroid": [c.x, c.y, c.z], "point_count": o.point_count,
+                "refused": refusal_counts(o).into_iter().collect::<serde_json::Map<_, _>>(),
                 "views": o.views.iter().map(|v| serde_json::json!({
                     "axis": pb::ViewAxis::try_from(v.axis).map_or("unknown", |a| a.as_str_name()),
                     "entropy": v.entropy, "inferred": v.inferred,
@@ -219,6 +247,43 @@ fn json_of_response(r: &pb::PlanGraspsResponse) -> serde_json::Value {
             "inference": t.inference_ms, "decode": t.decode_ms, "total": t.total_ms,
         },
     })
+}
+
+/// An object's candidate grasps lost, by cause (the answer's `refused`).
+fn refusal_counts(o: &pb::DetectedObject) -> Vec<(String, serde_json::Value)> {
+    let r = o.refused.unwrap_or_default();
+    [
+        ("table", r.table),
+        ("neighbour", r.neighbour),
+        ("own_points", r.own_points),
+        ("outside_approach_cone", r.outside_approach_cone),
+        ("out_of_reach", r.out_of_reach),
+    ]
+    .into_iter()
+    .map(|(cause, n)| (cause.to_owned(), n.into()))
+    .collect()
+}
+
+/// Why an object got no grasp, from its refusals: e.g. "3 hit the table,
+/// 2 out of the arm's reach".
+fn no_grasp_reason(o: &pb::DetectedObject) -> String {
+    let r = o.refused.unwrap_or_default();
+    let parts: Vec<String> = [
+        (r.table, "hit the table"),
+        (r.neighbour, "hit a neighbour"),
+        (r.own_points, "hit the object's own points"),
+        (r.outside_approach_cone, "outside the approach cone"),
+        (r.out_of_reach, "out of the arm's reach"),
+    ]
+    .iter()
+    .filter(|(n, _)| *n > 0)
+    .map(|(n, why)| format!("{n} {why}"))
+    .collect();
+    if parts.is_empty() {
+        "none refused: no candidate cleared min_quality in its views, or the answer was full".to_owned()
+    } else {
+        format!("candidates refused: {}", parts.join(", "))
+    }
 }
 
 /// What the grasps at the end of the list are, in the order they come.
@@ -274,6 +339,11 @@ fn print_table(r: &pb::PlanGraspsResponse) {
             a.y,
             a.z
         );
+    }
+    for o in &r.objects {
+        if !r.grasps.iter().any(|g| g.object_id == o.id) {
+            println!("object {}: no grasp ({})", o.id, no_grasp_reason(o));
+        }
     }
     if let Some(t) = r.timings {
         println!(
@@ -430,4 +500,32 @@ async fn main() -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An object without a grasp says why: its refusals by cause, or that
+    /// none was refused.
+    #[test]
+    fn an_object_without_a_grasp_says_why() {
+        let object = |refused: pb::ObjectRefusals| pb::DetectedObject {
+            refused: Some(refused),
+            ..Default::default()
+        };
+        let refused = object(pb::ObjectRefusals {
+            table: 1,
+            out_of_reach: 3,
+            ..Default::default()
+        });
+        assert_eq!(
+            no_grasp_reason(&refused),
+            "candidates refused: 1 hit the table, 3 out of the arm's reach"
+        );
+        let counts = refusal_counts(&refused);
+        assert_eq!(counts.len(), 5);
+        assert!(counts.contains(&("out_of_reach".to_owned(), 3.into())));
+        assert!(no_grasp_reason(&object(Default::default())).starts_with("none refused"));
+    }
 }

@@ -62,7 +62,7 @@ pub use gripper::Gripper;
 pub use infer::{Channel, GraspMaps, GraspNet, ModelContract, MomentsNet, ViewBatch};
 pub use object::ObjectFrame;
 pub use pipeline::{
-    ApproachCone, DebugView, DetectedObject, Finished, ObjectRefusals, Plan, PlanOptions, Planner,
+    ApproachCone, ArmReach, DebugView, DetectedObject, Finished, ObjectRefusals, Plan, PlanOptions, Planner,
     PlannerConfig, Prepared, Refusals, SceneInput, Segmentation, StageTimings, ViewReport, approach_of,
 };
 pub use segment::{ClusterConfig, CreaseConfig, Reattach, TableConfig, TablePlane};

@@ -33,6 +33,9 @@ def parse(argv):
     p.add_argument("--max-grasps", type=int, default=10)
     p.add_argument("--approach-cone", default=None, metavar="AX,AY,AZ,HALF_DEG",
                    help="ask for approaches within this cone only, e.g. 0,0,-1,60 (from above within 60 degrees)")
+    p.add_argument("--arm-reach", action="store_true",
+                   help="ask only for grasps the arm reaches at the pre-grasp, as the robot-bridge tells it "
+                        "from its calibration (the planner's arm_reach)")
     p.add_argument("--no-view-cascade", action="store_true",
                    help="ask for the paper's single pass over the policy's views (the ablation)")
     p.add_argument("--bin-fill-m", type=float, default=None, metavar="M",
@@ -98,6 +101,7 @@ def _init(args):
     _worker["planner"] = planner.OraclePlanner() if args.oracle else planner.Planner(
         args.server, args.policy, args.min_quality, args.max_grasps,
         view_cascade=False if args.no_view_cascade else None, approach_cone=args.approach_cone,
+        arm_reach=_worker["bridge"].arm_reach() if args.arm_reach else None,
         with_views=args.attempt_views is not None)
     _worker["args"] = args
     _worker["renderers"] = {}
@@ -178,7 +182,7 @@ def main(argv=None):
     print(file=sys.stderr)
     meta = {**info, "suite": args.suite, "policy": args.policy, "min_quality": args.min_quality,
             "max_grasps": args.max_grasps, "view_cascade": not args.no_view_cascade,
-            "approach_cone": args.approach_cone, "seed": args.seed,
+            "approach_cone": args.approach_cone, "arm_reach": args.arm_reach, "seed": args.seed,
             "resolution": args.resolution, "noise": args.noise,
             "oracle": args.oracle, "bin_fill_m": args.bin_fill_m,
             "approach_clearance_m": args.approach_clearance_m, "close_speed_m_s": args.close_speed_m_s,

@@ -90,6 +90,13 @@ class Bridge:
         t[:3, 3] = answer["position"]
         return t
 
+    def arm_reach(self):
+        """Where the bridge's arm reaches, as the planner's ArmReach takes it (a dict)."""
+        answer = self.ask({"arm_reach": None})
+        if not answer["ok"]:
+            raise RuntimeError(answer["error"])
+        return answer["arm_reach"]
+
     def plan(self, grasps, scene, current):
         """The bridge's pick for ranked `grasps` (dicts with position,
         orientation xyzw, width_m, quality, object) among the obstacles of

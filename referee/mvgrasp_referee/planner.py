@@ -27,7 +27,7 @@ class Planner:
     """A gRPC connection to the service, and the request options of a setting."""
 
     def __init__(self, address, policy="default", min_quality=None, max_grasps=10, timeout_s=30.0,
-                 view_cascade=None, approach_cone=None, with_views=False):
+                 view_cascade=None, approach_cone=None, arm_reach=None, with_views=False):
         import grpc  # noqa: PLC0415
 
         if policy not in POLICIES:
@@ -47,6 +47,8 @@ class Planner:
             if len(values) != 4:
                 raise ValueError(f"--approach-cone {approach_cone!r}: give AX,AY,AZ,HALF_DEG")
             self.approach_cone = values
+        # The robot-bridge's answer to {"arm_reach": null}, or None.
+        self.arm_reach = arm_reach
 
     def _info(self):
         """The served model's GetModelInfo answer, asked once."""
@@ -85,6 +87,12 @@ class Planner:
             ax, ay, az, half_deg = self.approach_cone
             options["approach_cone"] = pb.ApproachCone(axis=pb.Vector3(x=ax, y=ay, z=az),
                                                        half_angle_rad=np.radians(half_deg))
+        if self.arm_reach is not None:
+            r = self.arm_reach
+            options["arm_reach"] = pb.ArmReach(
+                shoulder=pb.Vector3(**dict(zip("xyz", r["shoulder"]))), axis=pb.Vector3(**dict(zip("xyz", r["axis"]))),
+                wrist_back_m=r["wrist_back_m"], approach_m=r["approach_m"], max_m=r["max_m"],
+                min_axis_m=r["min_axis_m"])
         (x0, y0, z0), (x1, y1, z1) = WORKSPACE
         request = pb.PlanGraspsRequest(
             depth=pb.DepthImage(width=pose.width, height=pose.height, encoding=pb.DEPTH_ENCODING_FLOAT32_M,
@@ -142,7 +150,7 @@ class Planner:
 
 
 # What a detected object's candidate grasps were lost to (`ObjectRefusals`).
-REFUSALS = ("table", "neighbour", "own_points", "outside_approach_cone")
+REFUSALS = ("table", "neighbour", "own_points", "outside_approach_cone", "out_of_reach")
 
 
 def bridge_scene(plan):

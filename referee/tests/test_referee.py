@@ -139,6 +139,35 @@ class CellTest(unittest.TestCase):
         finally:
             b.close()
 
+    def test_the_reach_the_bridge_tells_holds_the_simulated_arm(self):
+        """The shoulder the bridge tells the planner is the MJCF arm's; every
+        pose of the simulated arm puts its wrist centre (0.0996 m behind the
+        flange, the UR5e's d6) inside that reach."""
+        b = bridge.Bridge(bridge_binary(), gripper.tcp_in_flange(self.cell))
+        try:
+            reach = b.arm_reach()
+        finally:
+            b.close()
+        c = self.cell
+        mujoco.mj_kinematics(c.model, c.data)
+        pan = c.model.joint("arm/shoulder_pan_joint").id
+        lift = c.model.joint("arm/shoulder_lift_joint").id
+        shoulder = np.array(reach["shoulder"])
+        axis = np.array(reach["axis"])
+        self.assertLess(np.linalg.norm(np.cross(shoulder - c.data.xanchor[pan], c.data.xaxis[pan])), 1e-3)
+        self.assertAlmostEqual(shoulder[2], c.data.xanchor[lift][2], delta=1e-3)
+        self.assertLess(np.linalg.norm(axis - c.data.xaxis[pan]), 1e-6)
+        flange = c.model.body("arm/right_hand").id
+        rng = np.random.default_rng(5)
+        for _ in range(200):
+            c.set_arm(rng.uniform(-math.pi, math.pi, 6))
+            mujoco.mj_kinematics(c.model, c.data)
+            z = c.data.xmat[flange].reshape(3, 3)[:, 2]
+            wrist = c.data.xpos[flange] - 0.0996 * z
+            off = wrist - shoulder
+            self.assertLessEqual(np.linalg.norm(off), reach["max_m"] + 1e-3)
+            self.assertGreaterEqual(np.linalg.norm(off - off.dot(axis) * axis), reach["min_axis_m"] - 1e-3)
+
     def test_pad_gap_spans_the_datasheet_stroke(self):
         """0-140 mm between the pads, driven through the actuators."""
         angles, gaps = gripper.gap_table(self.cell)

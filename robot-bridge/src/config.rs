@@ -116,6 +116,9 @@ pub struct PlannerSection {
     /// Only approaches within this cone are asked of the planner (what this
     /// cell's arm can execute); unset: any.
     pub approach_cone: Option<ConeConfig>,
+    /// Ask the planner only for grasps this arm reaches at the pre-grasp
+    /// (`PickConfig::arm_reach`, from the calibration); false: any position.
+    pub arm_reach: bool,
     /// PEM CA that signed the planner's certificate: call it over TLS.
     pub tls_ca: Option<std::path::PathBuf>,
     /// PEM certificate of this bridge (mutual TLS; with `tls_key`).
@@ -209,6 +212,7 @@ impl Default for BridgeConfig {
                 endpoint: None,
                 timeout_s: 5.0,
                 approach_cone: None,
+                arm_reach: true,
                 tls_ca: None,
                 tls_cert: None,
                 tls_key: None,
@@ -371,6 +375,19 @@ impl BridgeConfig {
             .transpose()
     }
 
+    /// What to ask of the planner: `pick.max_grasps`, `planner.approach_cone`
+    /// and, with `planner.arm_reach`, where `arm` reaches.
+    pub fn ask(&self, arm: &crate::ur5e::Ur5e) -> Result<crate::planner::Ask> {
+        Ok(crate::planner::Ask {
+            max_grasps: self.pick.max_grasps,
+            approach_cone: self.approach_cone()?,
+            arm_reach: match self.planner.arm_reach {
+                true => Some(self.pick_config()?.arm_reach(arm)?),
+                false => None,
+            },
+        })
+    }
+
     /// What the planner asks for: `planner.tls_*` and `planner.token_file`, read.
     pub fn planner_credentials(&self) -> Result<mvgrasp_client::Credentials> {
         let p = &self.planner;
@@ -461,5 +478,17 @@ mod tests {
         assert!((cone.axis - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-12);
         assert!((cone.half_angle_rad - 60f64.to_radians()).abs() < 1e-12);
         assert_eq!(BridgeConfig::default().approach_cone().unwrap(), None);
+    }
+
+    #[test]
+    fn the_arm_reach_is_asked_unless_turned_off() {
+        let arm = crate::ur5e::Ur5e::default();
+        let on = BridgeConfig::default().ask(&arm).unwrap();
+        let reach = on.arm_reach.expect("on by default");
+        // The documented cell: the base at (0, 0.5, 0), the shoulder over it.
+        assert!((reach.shoulder - Vector3::new(0.0, 0.5, 0.1625)).norm() < 1e-12);
+        assert_eq!(reach.approach_m, BridgeConfig::default().pick.pregrasp_m);
+        let off = BridgeConfig::from_toml("[planner]\narm_reach = false\n").unwrap();
+        assert_eq!(off.ask(&arm).unwrap().arm_reach, None);
     }
 }

@@ -9,6 +9,10 @@
 //!
 //! - `{"fk": [q1..q6]}` -> `{"ok": true, "position": [x, y, z], "orientation": [x, y, z, w]}`,
 //!   `base_from_flange`;
+//! - `{"arm_reach": null}` -> `{"ok": true, "arm_reach": {"shoulder", "axis",
+//!   "wrist_back_m", "approach_m", "max_m", "min_axis_m"}}`, where the arm
+//!   reaches as the planner's `ArmReach` takes it (`PickConfig::arm_reach`),
+//!   for a simulator that calls the planner itself;
 //! - `{"plan": {"grasps": [...], "scene": {...}, "current": [q1..q6]}}`
 //!   -> `{"ok": true, "grasp_index": k, "steps": [...], "refused": [...]}`. Each
 //!   grasp is `{"position", "orientation", "width_m", "quality", "object"}` in
@@ -42,6 +46,9 @@ enum Request {
     /// Forward kinematics.
     #[serde(rename = "fk")]
     Fk(Joints),
+    /// Where the arm reaches, for the planner.
+    #[serde(rename = "arm_reach")]
+    ArmReach(()),
     /// A pick for ranked grasps.
     #[serde(rename = "plan")]
     Plan(PlanRequest),
@@ -151,6 +158,20 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                 "orientation": [r.i, r.j, r.k, r.w],
             }))
         }
+        Request::ArmReach(()) => {
+            let r = config.arm_reach(arm)?;
+            Ok(serde_json::json!({
+                "ok": true,
+                "arm_reach": {
+                    "shoulder": [r.shoulder.x, r.shoulder.y, r.shoulder.z],
+                    "axis": [r.axis.x, r.axis.y, r.axis.z],
+                    "wrist_back_m": r.wrist_back_m,
+                    "approach_m": r.approach_m,
+                    "max_m": r.max_m,
+                    "min_axis_m": r.min_axis_m,
+                },
+            }))
+        }
         Request::Plan(plan) => {
             let grasps = plan
                 .grasps
@@ -246,6 +267,29 @@ mod tests {
         for (i, want) in [p.x, p.y, p.z].iter().enumerate() {
             assert!((v["position"][i].as_f64().unwrap() - want).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn the_arm_reach_is_the_pick_configs() {
+        let v = ask("{\"arm_reach\": null}");
+        let want = PickConfig::default().arm_reach(&Ur5e::default()).unwrap();
+        assert_eq!(v["ok"], true);
+        let r = &v["arm_reach"];
+        assert_eq!(r["shoulder"][2].as_f64(), Some(want.shoulder.z));
+        assert_eq!(r["axis"][2].as_f64(), Some(1.0));
+        for (key, value) in [
+            ("wrist_back_m", want.wrist_back_m),
+            ("approach_m", want.approach_m),
+            ("max_m", want.max_m),
+            ("min_axis_m", want.min_axis_m),
+        ] {
+            assert_eq!(r[key].as_f64(), Some(value), "{key}");
+        }
+        // The UR5e's shoulder 0.1625 m over the base, the wrist centre
+        // 0.233 + 0.0996 m behind the fingertips, reach sqrt(0.9169^2 + 0.1333^2).
+        assert!((want.shoulder.z - 0.1625).abs() < 1e-12);
+        assert!((want.wrist_back_m - 0.3326).abs() < 1e-12);
+        assert!((want.max_m - 0.92654).abs() < 1e-5);
     }
 
     #[test]

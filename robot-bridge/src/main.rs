@@ -270,17 +270,16 @@ fn pick(
     use robot_bridge::rtde::RtdeClient;
 
     let scene = load_scene(depth, camera)?;
-    let max_grasps = settings.pick.max_grasps;
+    let ask = settings.ask(arm)?;
     let planned = match &settings.planner.endpoint {
         Some(endpoint) => plan_remotely(
             endpoint,
             &settings.planner_credentials()?,
             &scene,
-            max_grasps,
-            settings.approach_cone()?,
+            &ask,
             Duration::from_secs_f64(settings.planner.timeout_s),
         )?,
-        None => plan_locally(&scene, max_grasps, settings.approach_cone()?)?,
+        None => plan_locally(&scene, &ask)?,
     };
     println!(
         "planner {}: {} objects, {} grasps",

@@ -13,8 +13,8 @@ use std::{path::Path, time::Duration};
 
 use mvgrasp_client::{PlannerClient, pb};
 use mvgrasp_core::{
-    ApproachCone, DepthEncoding, DepthFrame, GraspNet, Intrinsics, MomentsNet, PlanOptions, Planner,
-    PlannerConfig, SceneInput, SensorInput, Workspace, pose_from_parts,
+    ApproachCone, ArmReach, DepthEncoding, DepthFrame, GraspNet, Intrinsics, MomentsNet, PlanOptions,
+    Planner, PlannerConfig, SceneInput, SensorInput, Workspace, pose_from_parts,
 };
 use nalgebra::{Isometry3, Point3, Quaternion, Rotation3, Translation3, UnitQuaternion, Vector3};
 
@@ -205,12 +205,39 @@ pub(crate) fn obstacles(
 /// Smallest quality a grasp needs, for both planners (the service's default is 0).
 pub const MIN_QUALITY: f32 = 0.5;
 
+/// What the bridge asks of either planner besides the frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ask {
+    /// At most this many grasps.
+    pub max_grasps: usize,
+    /// Only approaches within this cone (`planner.approach_cone`).
+    pub approach_cone: Option<ApproachCone>,
+    /// Only grasps the arm reaches (`planner.arm_reach`).
+    pub arm_reach: Option<ArmReach>,
+}
+
+impl Ask {
+    /// `max_grasps` grasps, with no constraint.
+    pub fn any(max_grasps: usize) -> Self {
+        Self {
+            max_grasps,
+            approach_cone: None,
+            arm_reach: None,
+        }
+    }
+}
+
+/// `v` as a message.
+fn message(v: &Vector3<f64>) -> pb::Vector3 {
+    pb::Vector3 {
+        x: v.x,
+        y: v.y,
+        z: v.z,
+    }
+}
+
 /// Plans on `scene` with `mvgrasp-core` and the analytic baseline network.
-pub fn plan_locally(
-    scene: &SceneFiles,
-    max_grasps: usize,
-    approach_cone: Option<ApproachCone>,
-) -> Result<PlannedScene> {
+pub fn plan_locally(scene: &SceneFiles, ask: &Ask) -> Result<PlannedScene> {
     let mut net = MomentsNet::default();
     let planner = Planner::new(PlannerConfig::default(), net.contract().clone())
         .map_err(|e| Error::Controller(e.to_string()))?;
@@ -226,9 +253,10 @@ pub fn plan_locally(
         workspace: scene.workspace,
     };
     let options = PlanOptions {
-        max_grasps,
+        max_grasps: ask.max_grasps,
         min_quality: MIN_QUALITY,
-        approach_cone,
+        approach_cone: ask.approach_cone,
+        arm_reach: ask.arm_reach,
         ..PlanOptions::default()
     };
     let plan = planner
@@ -290,8 +318,7 @@ pub fn plan_remotely(
     endpoint: &str,
     credentials: &mvgrasp_client::Credentials,
     scene: &SceneFiles,
-    max_grasps: usize,
-    approach_cone: Option<ApproachCone>,
+    ask: &Ask,
     timeout: Duration,
 ) -> Result<PlannedScene> {
     let runtime = tokio::runtime::Builder::new_current_thread()
@@ -299,15 +326,19 @@ pub fn plan_remotely(
         .build()
         .map_err(|e| Error::Io(format!("async runtime: {e}")))?;
     let request = pb::PlanGraspsRequest {
-        max_grasps: max_grasps as u32,
+        max_grasps: ask.max_grasps as u32,
         min_quality: Some(MIN_QUALITY),
-        approach_cone: approach_cone.map(|c| pb::ApproachCone {
-            axis: Some(pb::Vector3 {
-                x: c.axis.x,
-                y: c.axis.y,
-                z: c.axis.z,
-            }),
+        approach_cone: ask.approach_cone.map(|c| pb::ApproachCone {
+            axis: Some(message(&c.axis)),
             half_angle_rad: c.half_angle_rad,
+        }),
+        arm_reach: ask.arm_reach.map(|r| pb::ArmReach {
+            shoulder: Some(message(&r.shoulder)),
+            axis: Some(message(&r.axis)),
+            wrist_back_m: r.wrist_back_m,
+            approach_m: r.approach_m,
+            max_m: r.max_m,
+            min_axis_m: r.min_axis_m,
         }),
         ..scene.request.clone()
     };

@@ -2,8 +2,8 @@
 //! edge where every field is validated and named in errors.
 
 use mvgrasp_core::{
-    ApproachCone, Channel, CloudFrame, DebugView, DepthEncoding, DepthFrame, DetectedObject, Grasp, Gripper,
-    Intrinsics, ModelContract, Plan, PlanOptions, PointCloud, SceneInput, SensorInput, StageTimings,
+    ApproachCone, ArmReach, Channel, CloudFrame, DebugView, DepthEncoding, DepthFrame, DetectedObject, Grasp,
+    Gripper, Intrinsics, ModelContract, Plan, PlanOptions, PointCloud, SceneInput, SensorInput, StageTimings,
     TablePlane, ViewAxis, ViewPolicy, Workspace, pose_from_parts,
 };
 use mvgrasp_proto::v1 as pb;
@@ -184,6 +184,23 @@ pub fn options_of(request: &pb::PlanGraspsRequest, defaults: &RequestDefaults) -
                 )?)
             }
         },
+        arm_reach: match &request.arm_reach {
+            None => None,
+            Some(reach) => {
+                let shoulder = reach
+                    .shoulder
+                    .ok_or_else(|| Error::invalid("arm_reach.shoulder", "missing"))?;
+                let axis = reach.axis.map_or(Vector3::z(), |a| Vector3::new(a.x, a.y, a.z));
+                Some(ArmReach::new(
+                    Vector3::new(shoulder.x, shoulder.y, shoulder.z),
+                    axis,
+                    reach.wrist_back_m,
+                    reach.approach_m,
+                    reach.max_m,
+                    reach.min_axis_m,
+                )?)
+            }
+        },
     };
     options.validate()?;
     Ok(options)
@@ -262,6 +279,7 @@ fn object_message(o: &DetectedObject) -> pb::DetectedObject {
             neighbour: o.refused.neighbour as u32,
             own_points: o.refused.own_points as u32,
             outside_approach_cone: o.refused.outside_approach_cone as u32,
+            out_of_reach: o.refused.out_of_reach as u32,
         }),
     }
 }
@@ -325,6 +343,7 @@ pub fn response_of(
         ranked_last_out_of_view: plan.ranked_last_out_of_view as u32,
         ranked_after_turned_away: plan.ranked_after_turned_away as u32,
         outside_approach_cone: plan.outside_approach_cone as u32,
+        out_of_reach: plan.out_of_reach as u32,
     }
 }
 

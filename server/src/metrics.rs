@@ -50,8 +50,11 @@ pub struct Metrics {
     pub grasps_turned_away: IntCounter,
     /// Grasps dropped because their approach lay outside the request's cone.
     pub grasps_outside_approach_cone: IntCounter,
+    /// Grasps dropped because the request's arm reach did not reach them.
+    pub grasps_out_of_reach: IntCounter,
     /// Candidate grasps refused per object, by cause (`table`, `neighbour`,
-    /// `own_points`, `outside_approach_cone`), as in the answer's `refused`.
+    /// `own_points`, `outside_approach_cone`, `out_of_reach`), as in the
+    /// answer's `refused`.
     pub candidates_refused: IntCounterVec,
     /// Queued work dropped before inference, by reason.
     pub dropped: IntCounterVec,
@@ -66,7 +69,13 @@ pub struct Metrics {
 }
 
 /// The `cause` label values of `mvgrasp_grasp_candidates_refused_total`.
-pub const REFUSAL_CAUSES: [&str; 4] = ["table", "neighbour", "own_points", "outside_approach_cone"];
+pub const REFUSAL_CAUSES: [&str; 5] = [
+    "table",
+    "neighbour",
+    "own_points",
+    "outside_approach_cone",
+    "out_of_reach",
+];
 
 /// The `reason` label values of `mvgrasp_dropped_views_total`.
 pub const DROP_REASONS: [&str; 3] = ["queue_full", "caller_gone", "deadline"];
@@ -144,6 +153,11 @@ impl Metrics {
                 "Grasps dropped before ranking because their approach lay outside the request's approach cone",
             )
             .map_err(metric_error)?,
+            grasps_out_of_reach: IntCounter::new(
+                "grasps_out_of_reach_total",
+                "Grasps dropped before ranking because the request's arm reach did not reach them",
+            )
+            .map_err(metric_error)?,
             candidates_refused: IntCounterVec::new(
                 Opts::new(
                     "grasp_candidates_refused_total",
@@ -184,7 +198,7 @@ impl Metrics {
             .map_err(metric_error)?,
             registry,
         };
-        let collectors: [Box<dyn prometheus::core::Collector>; 21] = [
+        let collectors: [Box<dyn prometheus::core::Collector>; 22] = [
             Box::new(m.requests.clone()),
             Box::new(m.request_seconds.clone()),
             Box::new(m.stage_seconds.clone()),
@@ -199,6 +213,7 @@ impl Metrics {
             Box::new(m.grasps_turned_square.clone()),
             Box::new(m.grasps_turned_away.clone()),
             Box::new(m.grasps_outside_approach_cone.clone()),
+            Box::new(m.grasps_out_of_reach.clone()),
             Box::new(m.candidates_refused.clone()),
             Box::new(m.dropped.clone()),
             Box::new(m.queued_views_limit.clone()),

@@ -52,6 +52,19 @@ fn cone(axis: [f64; 3], half_angle_rad: f64) -> Option<pb::ApproachCone> {
     })
 }
 
+/// A UR5e-like reach, shoulder at `shoulder`, with its `max_m` and `min_axis_m`.
+fn reach(shoulder: [f64; 3], max_m: f64, min_axis_m: f64) -> Option<pb::ArmReach> {
+    let [x, y, z] = shoulder;
+    Some(pb::ArmReach {
+        shoulder: Some(pb::Vector3 { x, y, z }),
+        axis: None,
+        wrist_back_m: 0.33,
+        approach_m: 0.1,
+        max_m,
+        min_axis_m,
+    })
+}
+
 fn cases() -> Vec<(&'static str, Code, &'static str, Edit)> {
     let v = |x, y, z| Some(pb::Vector3 { x, y, z });
     vec![
@@ -262,6 +275,48 @@ fn cases() -> Vec<(&'static str, Code, &'static str, Edit)> {
             Code::InvalidArgument,
             "approach_cone.half_angle_rad",
             Box::new(|r| r.approach_cone = cone([0.0, 0.0, -1.0], f64::NAN)),
+        ),
+        (
+            "arm reach without a shoulder",
+            Code::InvalidArgument,
+            "arm_reach.shoulder",
+            Box::new(|r| {
+                r.arm_reach = reach([0.0; 3], 0.9, 0.1).map(|a| pb::ArmReach { shoulder: None, ..a })
+            }),
+        ),
+        (
+            "arm reach with a zero axis",
+            Code::InvalidArgument,
+            "arm_reach.axis",
+            Box::new(|r| {
+                r.arm_reach = reach([0.0; 3], 0.9, 0.1).map(|a| pb::ArmReach {
+                    axis: Some(pb::Vector3::default()),
+                    ..a
+                })
+            }),
+        ),
+        (
+            "arm reach of no length",
+            Code::InvalidArgument,
+            "arm_reach.max_m",
+            Box::new(|r| r.arm_reach = reach([0.0; 3], 0.0, 0.0)),
+        ),
+        (
+            "arm reach that keeps clear of more than it reaches",
+            Code::InvalidArgument,
+            "arm_reach.min_axis_m",
+            Box::new(|r| r.arm_reach = reach([0.0; 3], 0.9, 1.0)),
+        ),
+        (
+            "arm reach with a NaN wrist",
+            Code::InvalidArgument,
+            "arm_reach.wrist_back_m",
+            Box::new(|r| {
+                r.arm_reach = reach([0.0; 3], 0.9, 0.1).map(|a| pb::ArmReach {
+                    wrist_back_m: f64::NAN,
+                    ..a
+                })
+            }),
         ),
         (
             "too many pixels",
@@ -540,6 +595,14 @@ fn edges() -> Vec<(&'static str, Edit)> {
         (
             "approach cone with an infinite axis",
             Box::new(|r| r.approach_cone = cone([f64::INFINITY, 0.0, -1.0], 0.5)),
+        ),
+        (
+            "arm reach 1 km away",
+            Box::new(|r| r.arm_reach = reach([1000.0, 0.0, 0.0], 0.9, 0.1)),
+        ),
+        (
+            "arm reach of 1e300 m",
+            Box::new(|r| r.arm_reach = reach([0.0; 3], 1e300, 0.0)),
         ),
         (
             "request id of 100 kB",

@@ -4,7 +4,7 @@
 use std::time::Duration;
 
 use futures_util::StreamExt;
-use mvgrasp_client::{Error, PlannerClient};
+use mvgrasp_client::{Error, PlannerClient, pb};
 use mvgrasp_server::BackendKind;
 use nalgebra::Vector3;
 use tonic::Code;
@@ -19,7 +19,7 @@ use crate::{
     scene::{Camera, grid_scene},
 };
 
-fn frame() -> mvgrasp_client::pb::PlanGraspsRequest {
+fn frame() -> pb::PlanGraspsRequest {
     request(
         &grid_scene(0.0, 6, 3, 0.13),
         &Camera::orbit(Vector3::zeros(), 0.85, 50.0, -90.0),
@@ -56,15 +56,35 @@ async fn health_reflection_and_metrics() {
     assert!(names.contains(&"grpc.health.v1.Health".to_owned()), "{names:?}");
 
     let mut inferred_views = 0;
-    let mut refused = [0u32; 4];
-    for _ in 0..3 {
-        let response = client.plan(frame()).await.unwrap();
+    let mut refused = [0u32; 5];
+    let mut out_of_reach = 0;
+    for call in 0..3 {
+        let mut request = frame();
+        if call == 2 {
+            // An arm 10 m away: every candidate out of its reach.
+            request.arm_reach = Some(pb::ArmReach {
+                shoulder: Some(pb::Vector3 {
+                    x: 10.0,
+                    y: 0.0,
+                    z: 0.2,
+                }),
+                axis: None,
+                wrist_back_m: 0.33,
+                approach_m: 0.1,
+                max_m: 0.93,
+                min_axis_m: 0.13,
+            });
+        }
+        let response = client.plan(request).await.unwrap();
+        out_of_reach += response.out_of_reach;
         for r in response.objects.iter().filter_map(|o| o.refused.as_ref()) {
-            for (sum, n) in
-                refused
-                    .iter_mut()
-                    .zip([r.table, r.neighbour, r.own_points, r.outside_approach_cone])
-            {
+            for (sum, n) in refused.iter_mut().zip([
+                r.table,
+                r.neighbour,
+                r.own_points,
+                r.outside_approach_cone,
+                r.out_of_reach,
+            ]) {
                 *sum += n;
             }
         }
@@ -109,14 +129,28 @@ async fn health_reflection_and_metrics() {
     assert!(metrics.contains("mvgrasp_model_info{backend=\"onnxruntime-cpu\""));
     assert_eq!(sample(&metrics, "mvgrasp_queued_views"), 0.0);
     // The answers' per-object refusals, summed by cause.
-    for (cause, n) in ["table", "neighbour", "own_points", "outside_approach_cone"]
-        .iter()
-        .zip(refused)
+    for (cause, n) in [
+        "table",
+        "neighbour",
+        "own_points",
+        "outside_approach_cone",
+        "out_of_reach",
+    ]
+    .iter()
+    .zip(refused)
     {
         let name = format!("mvgrasp_grasp_candidates_refused_total{{cause=\"{cause}\"}}");
         assert_eq!(sample(&metrics, &name), f64::from(n), "{cause}");
     }
     assert!(refused.iter().sum::<u32>() > 0, "{refused:?}");
+    assert!(
+        out_of_reach > 0 && out_of_reach == refused[4],
+        "{out_of_reach} {refused:?}"
+    );
+    assert_eq!(
+        sample(&metrics, "mvgrasp_grasps_out_of_reach_total"),
+        f64::from(out_of_reach)
+    );
     // Limits are exported for the alerts; label values exist before their first event.
     assert_eq!(sample(&metrics, "mvgrasp_queued_views_limit"), 2048.0);
     assert!(sample(&metrics, "mvgrasp_in_flight_requests_limit") > 0.0);
@@ -186,7 +220,7 @@ async fn concurrent_calls_share_network_batches() {
             let mut c = client.clone();
             // One network round per call (no view cascade): 8 requests to batch.
             tokio::spawn(async move {
-                c.plan(mvgrasp_client::pb::PlanGraspsRequest {
+                c.plan(pb::PlanGraspsRequest {
                     view_cascade: Some(false),
                     ..frame()
                 })

@@ -12,7 +12,7 @@ mod plan;
 mod prepared;
 mod vet;
 
-pub use options::{ApproachCone, PlanOptions, PlannerConfig, SceneInput};
+pub use options::{ApproachCone, ArmReach, PlanOptions, PlannerConfig, SceneInput};
 use plan::RankedLast;
 pub use plan::{
     DebugView, DetectedObject, ObjectRefusals, Plan, Refusals, Segmentation, StageTimings, ViewReport,
@@ -346,7 +346,8 @@ impl Planner {
         max_per_object: usize,
     ) -> Vetted {
         let (objects, table, view) = (&prepared.objects, &prepared.table, &prepared.view);
-        // Approaches the robot cannot take: dropped before anything else.
+        // Approaches and positions the robot cannot take: dropped before
+        // anything else.
         let mut per_object = vec![ObjectRefusals::default(); objects.len()];
         let index_of = |id: u32| objects.iter().position(|o| o.object.id == id);
         if let Some(cone) = &options.approach_cone {
@@ -356,6 +357,15 @@ impl Planner {
                     per_object[i].outside_approach_cone += 1;
                 }
                 within
+            });
+        }
+        if let Some(reach) = &options.arm_reach {
+            grasps.retain(|g| {
+                let reached = reach.reaches(&g.world_from_grasp.translation.vector, &approach_of(g));
+                if let (false, Some(i)) = (reached, index_of(g.object_id)) {
+                    per_object[i].out_of_reach += 1;
+                }
+                reached
             });
         }
         let obstacles: Vec<Obstacle<'_>> = objects
@@ -452,6 +462,7 @@ impl Planner {
             neighbour: total(|r| r.neighbour),
         };
         let outside_approach_cone = total(|r| r.outside_approach_cone);
+        let out_of_reach = total(|r| r.out_of_reach);
         let mut debug_views = Vec::new();
         if options.keep_views {
             for (object_index, o) in objects.iter().enumerate() {
@@ -472,6 +483,7 @@ impl Planner {
             ranked_after_turned_away: count(RankedLast::TurnedAway),
             ranked_last_out_of_view: count(RankedLast::OutOfView),
             outside_approach_cone,
+            out_of_reach,
             turned_square,
             objects: objects
                 .into_iter()

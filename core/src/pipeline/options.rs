@@ -45,6 +45,10 @@ pub struct PlanOptions {
     /// outside it are not inferred, unless none of an object's views lies
     /// within it (their grasps approach along that direction).
     pub approach_cone: Option<ApproachCone>,
+    /// Only grasps this arm reaches are planned; `None`: any position. An
+    /// object whose views give none goes on to its next view under the
+    /// cascade.
+    pub arm_reach: Option<ArmReach>,
 }
 
 /// A cone of approach directions (world frame).
@@ -84,6 +88,107 @@ impl ApproachCone {
     }
 }
 
+/// Where an arm reaches, as its wrist sees it (world frame): a grasp is
+/// reached when its wrist points, from `wrist_back_m` behind the grasp's
+/// origin along its approach to `approach_m` further back (the wrist at the
+/// pre-grasp), lie within `max_m` of the shoulder, and the straight line
+/// between them keeps `min_axis_m` from the base axis through the shoulder.
+/// A necessary condition for a 6-axis arm's inverse kinematics along the
+/// approach, not a sufficient one: the robot's own check stays.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArmReach {
+    /// The shoulder joint's centre.
+    pub shoulder: Vector3<f64>,
+    /// The base axis through the shoulder (unit).
+    pub axis: Vector3<f64>,
+    /// From the grasp's origin back along its approach to the wrist point (m).
+    pub wrist_back_m: f64,
+    /// The straight approach: how much further back the wrist starts (m).
+    pub approach_m: f64,
+    /// Farthest a wrist point may lie from the shoulder (m).
+    pub max_m: f64,
+    /// Nearest the wrist may come to the base axis (m).
+    pub min_axis_m: f64,
+}
+
+impl ArmReach {
+    /// An arm's reach, checked: finite, `axis` non-zero (normalised),
+    /// `wrist_back_m` and `approach_m` >= 0, `0 <= min_axis_m < max_m`.
+    pub fn new(
+        shoulder: Vector3<f64>,
+        axis: Vector3<f64>,
+        wrist_back_m: f64,
+        approach_m: f64,
+        max_m: f64,
+        min_axis_m: f64,
+    ) -> Result<Self> {
+        if !shoulder.iter().all(|v| v.is_finite()) {
+            return Err(Error::invalid(
+                "arm_reach.shoulder",
+                format!("must be finite, got {shoulder:?}"),
+            ));
+        }
+        let norm = axis.norm();
+        if !(norm.is_finite() && norm > 1e-9) {
+            return Err(Error::invalid(
+                "arm_reach.axis",
+                format!("must be finite and non-zero, got {axis:?}"),
+            ));
+        }
+        for (field, value) in [
+            ("arm_reach.wrist_back_m", wrist_back_m),
+            ("arm_reach.approach_m", approach_m),
+        ] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(Error::invalid(
+                    field,
+                    format!("must be finite and >= 0, got {value}"),
+                ));
+            }
+        }
+        if !(max_m.is_finite() && max_m > 0.0) {
+            return Err(Error::invalid(
+                "arm_reach.max_m",
+                format!("must be finite and > 0, got {max_m}"),
+            ));
+        }
+        if !(min_axis_m.is_finite() && min_axis_m >= 0.0 && min_axis_m < max_m) {
+            return Err(Error::invalid(
+                "arm_reach.min_axis_m",
+                format!("must be in [0, max_m = {max_m}), got {min_axis_m}"),
+            ));
+        }
+        Ok(Self {
+            shoulder,
+            axis: axis / norm,
+            wrist_back_m,
+            approach_m,
+            max_m,
+            min_axis_m,
+        })
+    }
+
+    /// True when the arm reaches a grasp at `origin` approaching along
+    /// `approach` (unit).
+    pub fn reaches(&self, origin: &Vector3<f64>, approach: &Vector3<f64>) -> bool {
+        let at_grasp = origin - self.wrist_back_m * approach - self.shoulder;
+        let at_start = at_grasp - self.approach_m * approach;
+        if at_grasp.norm() > self.max_m || at_start.norm() > self.max_m {
+            return false;
+        }
+        // Nearest the segment between them comes to the axis: across it.
+        let across = |v: Vector3<f64>| v - v.dot(&self.axis) * self.axis;
+        let (a, b) = (across(at_grasp), across(at_start));
+        let run = b - a;
+        let t = if run.norm_squared() > 1e-18 {
+            (-a.dot(&run) / run.norm_squared()).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (a + t * run).norm() >= self.min_axis_m
+    }
+}
+
 impl Default for PlanOptions {
     fn default() -> Self {
         Self {
@@ -94,6 +199,7 @@ impl Default for PlanOptions {
             keep_views: false,
             view_cascade: true,
             approach_cone: None,
+            arm_reach: None,
         }
     }
 }
@@ -141,6 +247,52 @@ impl Default for PlannerConfig {
             hand: HandConfig::default(),
             views: ViewAxis::ALL.to_vec(),
             max_grasps_per_object: 3,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The wrist's distance from the shoulder at both ends of the approach,
+    /// and the straight line between them passing the base axis.
+    #[test]
+    fn an_arm_reaches_within_its_sphere_and_outside_its_axis() {
+        let reach = ArmReach::new(
+            Vector3::new(0.0, 0.0, 0.2),
+            Vector3::new(0.0, 0.0, 3.0),
+            0.3,
+            0.1,
+            0.9,
+            0.13,
+        )
+        .unwrap();
+        assert_eq!(reach.axis, Vector3::z());
+        let down = -Vector3::z();
+        // From above, 0.5 m out: wrist 0.3-0.4 m over the grasp.
+        assert!(reach.reaches(&Vector3::new(0.5, 0.0, 0.0), &down));
+        // 0.9 m out the wrist lies beyond 0.9 m.
+        assert!(!reach.reaches(&Vector3::new(0.9, 0.0, 0.0), &down));
+        // Sideways towards the base: the wrist at the pre-grasp is 0.4 m
+        // further out than the grasp, which alone would be in reach.
+        let towards_base = -Vector3::x();
+        assert!(!reach.reaches(&Vector3::new(0.55, 0.0, 0.2), &towards_base));
+        assert!(reach.reaches(&Vector3::new(0.55, 0.0, 0.2), &-towards_base));
+        // A straight approach whose wrist would cross the base axis between
+        // the pre-grasp and the grasp, both ends clear of it.
+        let across = ArmReach::new(Vector3::zeros(), Vector3::z(), 0.0, 0.4, 0.9, 0.13).unwrap();
+        assert!(!across.reaches(&Vector3::new(0.0, -0.2, 0.0), &-Vector3::y()));
+        assert!(across.reaches(&Vector3::new(0.2, -0.2, 0.0), &-Vector3::y()));
+        for bad in [
+            ArmReach::new(Vector3::new(f64::NAN, 0.0, 0.0), Vector3::z(), 0.3, 0.1, 0.9, 0.1),
+            ArmReach::new(Vector3::zeros(), Vector3::zeros(), 0.3, 0.1, 0.9, 0.1),
+            ArmReach::new(Vector3::zeros(), Vector3::z(), -0.1, 0.1, 0.9, 0.1),
+            ArmReach::new(Vector3::zeros(), Vector3::z(), 0.3, f64::INFINITY, 0.9, 0.1),
+            ArmReach::new(Vector3::zeros(), Vector3::z(), 0.3, 0.1, 0.0, 0.0),
+            ArmReach::new(Vector3::zeros(), Vector3::z(), 0.3, 0.1, 0.9, 0.9),
+        ] {
+            assert!(bad.is_err(), "{bad:?}");
         }
     }
 }

@@ -64,8 +64,8 @@ pub struct DetectedObject {
     pub frame: ObjectFrame,
     /// Its views.
     pub views: Vec<ViewReport>,
-    /// Its candidate grasps lost to the hand check or the approach cone,
-    /// by cause (among those checked: ranking stops checking once the
+    /// Its candidate grasps lost to the hand check, the approach cone or
+    /// the arm's reach, by cause (among those checked: ranking stops checking once the
     /// answer is full). An object without a grasp says why here.
     pub refused: ObjectRefusals,
 }
@@ -81,6 +81,8 @@ pub struct ObjectRefusals {
     pub own_points: usize,
     /// The approach lay outside [`PlanOptions::approach_cone`](super::PlanOptions::approach_cone).
     pub outside_approach_cone: usize,
+    /// [`PlanOptions::arm_reach`](super::PlanOptions::arm_reach) did not reach the grasp.
+    pub out_of_reach: usize,
 }
 
 /// A rendered view with its maps, when [`PlanOptions::keep_views`](super::PlanOptions::keep_views) is set.
@@ -139,6 +141,9 @@ pub struct Plan {
     /// Grasps dropped before ranking because their approach lay outside
     /// [`PlanOptions::approach_cone`](super::PlanOptions::approach_cone).
     pub outside_approach_cone: usize,
+    /// Grasps dropped before ranking because
+    /// [`PlanOptions::arm_reach`](super::PlanOptions::arm_reach) did not reach them.
+    pub out_of_reach: usize,
     /// Grasps turned about their approach axis to square them to the
     /// surfaces their pads meet ([`HandConfig::square_turn_deg`](crate::decode::HandConfig::square_turn_deg)), among
     /// those checked.

@@ -1,10 +1,10 @@
-//! Which views an object is planned from: the view cascade and the
-//! approach cone.
+//! Which views an object is planned from: the view cascade, the
+//! approach cone and the arm's reach.
 
 use mvgrasp_core::{GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig, ViewPolicy, approach_of};
 use nalgebra::Vector3;
 
-use crate::scene::{self, Camera, grid_scene};
+use crate::scene::{self, Camera, Scene, grid_scene};
 use crate::{plan_rendered, table_workspace};
 
 /// A network that answers nothing on its first call, then as the analytic
@@ -88,6 +88,22 @@ fn the_view_cascade_tries_the_next_view() {
     }
 }
 
+/// Five boxes in a row seen from 50 degrees, and a request for every view
+/// of each, up to 50 grasps of quality 0.1 or more.
+fn five_in_a_row() -> (Scene, Camera, PlanOptions) {
+    let every = PlanOptions {
+        view_policy: ViewPolicy::All,
+        max_grasps: 50,
+        min_quality: 0.1,
+        ..PlanOptions::default()
+    };
+    (
+        grid_scene(0.1, 5, 5, 0.12),
+        Camera::orbit(Vector3::new(0.0, 0.0, 0.1), 0.8, 50.0, -90.0),
+        every,
+    )
+}
+
 /// An approach cone keeps only the grasps within it: the views whose
 /// direction lies outside it are not inferred (none of their grasps could
 /// pass), and each object gets a grasp from the views within it. A cone
@@ -95,14 +111,7 @@ fn the_view_cascade_tries_the_next_view() {
 /// each grasp as outside the cone: every object has its reason.
 #[test]
 fn an_approach_cone_keeps_only_the_approaches_within_it() {
-    let scene = grid_scene(0.1, 5, 5, 0.12);
-    let camera = Camera::orbit(Vector3::new(0.0, 0.0, 0.1), 0.8, 50.0, -90.0);
-    let every = PlanOptions {
-        view_policy: ViewPolicy::All,
-        max_grasps: 50,
-        min_quality: 0.1,
-        ..PlanOptions::default()
-    };
+    let (scene, camera, every) = five_in_a_row();
     let (free, _) = plan_rendered(&scene, &camera, &every);
     assert_eq!(free.outside_approach_cone, 0);
     assert!(
@@ -185,6 +194,66 @@ fn an_approach_cone_keeps_only_the_approaches_within_it() {
     assert!(mvgrasp_core::ApproachCone::new(Vector3::z(), 0.0).is_err());
     assert!(mvgrasp_core::ApproachCone::new(Vector3::z(), 3.2).is_err());
     assert!(mvgrasp_core::ApproachCone::new(Vector3::z(), std::f64::consts::PI).is_ok());
+}
+
+/// An arm's reach keeps only the grasps it reaches, before ranking: an arm
+/// high over the table reaches down onto the objects but not round their
+/// sides, so side grasps are counted out of reach and, under the cascade,
+/// each object goes on to a view the arm reaches. An arm that reaches
+/// nothing leaves every object without a grasp, each with its reason, after
+/// every view was tried.
+#[test]
+fn an_arm_reach_keeps_only_the_grasps_it_reaches() {
+    let (scene, camera, every) = five_in_a_row();
+    let overhead =
+        mvgrasp_core::ArmReach::new(Vector3::new(0.0, 0.0, 0.9), Vector3::z(), 0.3, 0.1, 0.65, 0.0)
+            .expect("reach");
+    let (free, _) = plan_rendered(&scene, &camera, &every);
+    assert_eq!(free.out_of_reach, 0);
+    for policy in [ViewPolicy::All, ViewPolicy::Entropy] {
+        let options = PlanOptions {
+            view_policy: policy,
+            arm_reach: Some(overhead),
+            ..every.clone()
+        };
+        let (plan, _) = plan_rendered(&scene, &camera, &options);
+        for g in &plan.grasps {
+            assert!(
+                overhead.reaches(&g.world_from_grasp.translation.vector, &approach_of(g)),
+                "{policy:?}: {g:?}"
+            );
+            assert!(approach_of(g).z < -0.5, "{policy:?}: from above only");
+        }
+        let counted: usize = plan.objects.iter().map(|o| o.refused.out_of_reach).sum();
+        assert_eq!(counted, plan.out_of_reach, "{policy:?}");
+        if policy == ViewPolicy::All {
+            assert!(plan.out_of_reach > 0, "the side views' grasps were dropped");
+        }
+        for object in &plan.objects {
+            assert!(
+                plan.grasps.iter().any(|g| g.object_id == object.id),
+                "{policy:?}: object {} has a grasp the arm reaches",
+                object.id
+            );
+        }
+    }
+    let far = mvgrasp_core::ArmReach::new(Vector3::new(3.0, 0.0, 0.2), Vector3::z(), 0.3, 0.1, 0.9, 0.1)
+        .expect("reach");
+    let options = PlanOptions {
+        view_policy: ViewPolicy::Entropy,
+        arm_reach: Some(far),
+        ..every.clone()
+    };
+    let (plan, _) = plan_rendered(&scene, &camera, &options);
+    assert!(plan.grasps.is_empty());
+    for object in &plan.objects {
+        assert!(object.refused.out_of_reach > 0, "object {}", object.id);
+        assert!(
+            object.views.iter().all(|v| v.inferred),
+            "object {}: every view tried",
+            object.id
+        );
+    }
 }
 
 /// The oblique views, when a planner renders them, give grasps that

@@ -107,6 +107,19 @@ impl Default for Ur5e {
     }
 }
 
+/// Where a UR arm's wrist centre reaches ([`Ur5e::wrist_reach`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WristReach {
+    /// The shoulder above the base origin, along the base z (m).
+    pub shoulder_height_m: f64,
+    /// Farthest the wrist centre lies from the shoulder (m).
+    pub max_m: f64,
+    /// Nearest the wrist centre comes to the base z axis (m).
+    pub min_axis_m: f64,
+    /// The wrist centre behind the flange, along the flange z (m).
+    pub centre_back_m: f64,
+}
+
 /// Weights of each joint's move when choosing among IK solutions.
 const MOVE_WEIGHTS: [f64; 6] = [2.0, 2.0, 1.5, 1.0, 1.0, 0.5];
 
@@ -114,6 +127,24 @@ const MOVE_WEIGHTS: [f64; 6] = [2.0, 2.0, 1.5, 1.0, 1.0, 0.5];
 const WRIST_SINGULAR: f64 = 1e-9;
 
 impl Ur5e {
+    /// Where the wrist centre (the origin of the frame after joint 5, `d6`
+    /// back from the flange along its z) can be, in the base frame: at most
+    /// [`WristReach::max_m`] from the shoulder (the origin after joint 1),
+    /// at least [`WristReach::min_axis_m`] from the base z axis. Both follow
+    /// from the DH table: joints 2-4 swing the wrist in one plane through
+    /// the shoulder (at most `|a2| + |a3|` out, then `d5` further in the
+    /// plane and `d4` across it), and [`Ur5e::inverse`] has no solution
+    /// whose wrist centre lies nearer the base axis than `d4`.
+    pub fn wrist_reach(&self) -> WristReach {
+        let (d, a) = (&self.dh.d, &self.dh.a);
+        WristReach {
+            shoulder_height_m: d[0],
+            max_m: (a[1].abs() + a[2].abs() + d[4]).hypot(d[3]),
+            min_axis_m: d[3],
+            centre_back_m: d[5],
+        }
+    }
+
     /// The base frame and the frame after each joint (the last is the flange).
     pub fn forward_frames(&self, q: &Joints) -> [Isometry3<f64>; 7] {
         let mut frames = [Isometry3::identity(); 7];

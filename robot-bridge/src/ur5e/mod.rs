@@ -2,4 +2,6 @@
 
 mod kinematics;
 
-pub use kinematics::{DhParams, JointLimits, Joints, Ur5e, check_joints, check_pose, max_joint_move};
+pub use kinematics::{
+    DhParams, JointLimits, Joints, Ur5e, WristReach, check_joints, check_pose, max_joint_move,
+};

@@ -3,7 +3,7 @@
 use super::*;
 use robot_bridge::execute::{Controller, PickOutcome, execute_pick};
 use robot_bridge::gripper::Gripper;
-use robot_bridge::planner::{load_scene, plan_locally, plan_remotely};
+use robot_bridge::planner::{Ask, load_scene, plan_locally, plan_remotely};
 
 fn sample(file: &str) -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -18,7 +18,11 @@ fn the_planner_is_asked_for_the_cells_approaches_only() {
     let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
     let cone =
         mvgrasp_core::ApproachCone::new(Vector3::new(0.0, 0.0, -1.0), 20f64.to_radians()).expect("cone");
-    let planned = plan_locally(&scene, 50, Some(cone)).expect("planned");
+    let ask = Ask {
+        approach_cone: Some(cone),
+        ..Ask::any(50)
+    };
+    let planned = plan_locally(&scene, &ask).expect("planned");
     assert!(!planned.grasps.is_empty());
     for g in &planned.grasps {
         let approach = g.world_from_grasp.rotation * Vector3::z();
@@ -32,7 +36,7 @@ fn the_planner_is_asked_for_the_cells_approaches_only() {
 fn the_sample_scene_is_picked_end_to_end() {
     let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
     assert_eq!((scene.width, scene.height), (640, 480));
-    let planned = plan_locally(&scene, 10, None).expect("planned");
+    let planned = plan_locally(&scene, &Ask::any(10)).expect("planned");
     assert_eq!(planned.objects.len(), 6);
     assert!(!planned.grasps.is_empty());
     // The documented defaults (base, drop pose, basket obstacle), faster for the test.
@@ -95,13 +99,17 @@ fn the_service_plans_what_the_in_process_planner_plans() {
     settings.model.backend = mvgrasp_server::BackendKind::Baseline;
     let server = runtime.block_on(mvgrasp_server::start(settings)).expect("server");
     let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
-    let local = plan_locally(&scene, 10, None).expect("local");
+    // The documented defaults' ask, the arm's reach included.
+    let ask = robot_bridge::config::BridgeConfig::default()
+        .ask(&Ur5e::default())
+        .expect("ask");
+    assert!(ask.arm_reach.is_some());
+    let local = plan_locally(&scene, &ask).expect("local");
     let remote = plan_remotely(
         &format!("http://{}", server.addr),
         &Default::default(),
         &scene,
-        10,
-        None,
+        &ask,
         TIMEOUT,
     )
     .expect("remote");
@@ -134,7 +142,7 @@ fn a_planner_that_is_down_is_a_clear_error() {
         .port();
     let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
     let endpoint = format!("http://127.0.0.1:{port}");
-    let err = plan_remotely(&endpoint, &Default::default(), &scene, 10, None, TIMEOUT)
+    let err = plan_remotely(&endpoint, &Default::default(), &scene, &Ask::any(10), TIMEOUT)
         .expect_err("nothing listens there");
     assert!(
         matches!(err, Error::Io(_)) && err.to_string().contains(&endpoint),
@@ -158,7 +166,8 @@ fn a_planner_that_asks_for_a_token_gets_the_configured_one() {
     let server = runtime.block_on(mvgrasp_server::start(settings)).expect("server");
     let endpoint = format!("http://{}", server.addr);
     let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
-    let err = plan_remotely(&endpoint, &Default::default(), &scene, 10, None, TIMEOUT).expect_err("no token");
+    let err =
+        plan_remotely(&endpoint, &Default::default(), &scene, &Ask::any(10), TIMEOUT).expect_err("no token");
     assert!(err.to_string().contains("Bearer"), "{err}");
     let config: robot_bridge::config::BridgeConfig = toml::from_str(&format!(
         "[planner]\nendpoint = \"{endpoint}\"\ntoken_file = \"{}\"\n",
@@ -166,7 +175,8 @@ fn a_planner_that_asks_for_a_token_gets_the_configured_one() {
     ))
     .expect("config");
     let credentials = config.planner_credentials().expect("credentials");
-    let planned = plan_remotely(&endpoint, &credentials, &scene, 10, None, TIMEOUT).expect("with the token");
+    let planned =
+        plan_remotely(&endpoint, &credentials, &scene, &Ask::any(10), TIMEOUT).expect("with the token");
     assert_eq!(planned.objects.len(), 6);
     runtime.block_on(server.shutdown()).expect("shutdown");
     let _ = std::fs::remove_dir_all(&dir);
@@ -185,7 +195,7 @@ fn a_planner_that_does_not_answer_is_a_clear_error_within_the_deadline() {
     let endpoint = format!("http://127.0.0.1:{port}");
     let start = Instant::now();
     let err =
-        plan_remotely(&endpoint, &Default::default(), &scene, 10, None, TIMEOUT).expect_err("no answer");
+        plan_remotely(&endpoint, &Default::default(), &scene, &Ask::any(10), TIMEOUT).expect_err("no answer");
     let waited = start.elapsed();
     assert!(err.to_string().contains(&endpoint), "{err}");
     assert!(

@@ -15,6 +15,7 @@ pub fn plan_options(setting: &Setting, seed: u64, gripper: &GripperModel) -> Pla
         keep_views: false,
         view_cascade: true,
         approach_cone: None,
+        arm_reach: None,
     }
 }
 
