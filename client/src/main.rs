@@ -249,36 +249,39 @@ fn json_of_response(r: &pb::PlanGraspsResponse) -> serde_json::Value {
     })
 }
 
-/// An object's candidate grasps lost, by cause (the answer's `refused`).
-fn refusal_counts(o: &pb::DetectedObject) -> Vec<(String, serde_json::Value)> {
+/// An object's candidate grasps lost, by cause (the answer's `refused`):
+/// each cause's name, how `plan` words it, and the count.
+fn refusals(o: &pb::DetectedObject) -> [(&'static str, &'static str, u32); 5] {
     let r = o.refused.unwrap_or_default();
     [
-        ("table", r.table),
-        ("neighbour", r.neighbour),
-        ("own_points", r.own_points),
-        ("outside_approach_cone", r.outside_approach_cone),
-        ("out_of_reach", r.out_of_reach),
+        ("table", "hit the table", r.table),
+        ("neighbour", "hit a neighbour", r.neighbour),
+        ("own_points", "hit the object's own points", r.own_points),
+        (
+            "outside_approach_cone",
+            "outside the approach cone",
+            r.outside_approach_cone,
+        ),
+        ("out_of_reach", "out of the arm's reach", r.out_of_reach),
     ]
-    .into_iter()
-    .map(|(cause, n)| (cause.to_owned(), n.into()))
-    .collect()
+}
+
+/// An object's refusals by cause, as JSON fields.
+fn refusal_counts(o: &pb::DetectedObject) -> Vec<(String, serde_json::Value)> {
+    refusals(o)
+        .into_iter()
+        .map(|(cause, _, n)| (cause.to_owned(), n.into()))
+        .collect()
 }
 
 /// Why an object got no grasp, from its refusals: e.g. "3 hit the table,
 /// 2 out of the arm's reach".
 fn no_grasp_reason(o: &pb::DetectedObject) -> String {
-    let r = o.refused.unwrap_or_default();
-    let parts: Vec<String> = [
-        (r.table, "hit the table"),
-        (r.neighbour, "hit a neighbour"),
-        (r.own_points, "hit the object's own points"),
-        (r.outside_approach_cone, "outside the approach cone"),
-        (r.out_of_reach, "out of the arm's reach"),
-    ]
-    .iter()
-    .filter(|(n, _)| *n > 0)
-    .map(|(n, why)| format!("{n} {why}"))
-    .collect();
+    let parts: Vec<String> = refusals(o)
+        .iter()
+        .filter(|(_, _, n)| *n > 0)
+        .map(|(_, why, n)| format!("{n} {why}"))
+        .collect();
     if parts.is_empty() {
         "none refused: no candidate cleared min_quality in its views, or the answer was full".to_owned()
     } else {

@@ -32,7 +32,8 @@ class Planner:
 
         if policy not in POLICIES:
             raise ValueError(f"unknown view policy {policy!r} (one of {', '.join(POLICIES)})")
-        self.pb, rpc = _client_module().stubs()
+        client = _client_module()
+        self.pb, rpc = client.stubs()
         # With views the answer carries every rendered view and its maps (MBs).
         self.with_views = with_views
         self.channel = grpc.insecure_channel(address, options=[("grpc.max_receive_message_length", 256 << 20)])
@@ -47,8 +48,10 @@ class Planner:
             if len(values) != 4:
                 raise ValueError(f"--approach-cone {approach_cone!r}: give AX,AY,AZ,HALF_DEG")
             self.approach_cone = values
-        # The robot-bridge's answer to {"arm_reach": null}, or None.
-        self.arm_reach = arm_reach
+        # The robot-bridge's answer to {"arm_reach": null} as the request's ArmReach, or None.
+        self.arm_reach = None if arm_reach is None else client.arm_reach(
+            self.pb, arm_reach["shoulder"], arm_reach["wrist_back_m"], arm_reach["approach_m"],
+            arm_reach["max_m"], arm_reach["min_axis_m"], axis=arm_reach["axis"])
 
     def _info(self):
         """The served model's GetModelInfo answer, asked once."""
@@ -88,11 +91,7 @@ class Planner:
             options["approach_cone"] = pb.ApproachCone(axis=pb.Vector3(x=ax, y=ay, z=az),
                                                        half_angle_rad=np.radians(half_deg))
         if self.arm_reach is not None:
-            r = self.arm_reach
-            options["arm_reach"] = pb.ArmReach(
-                shoulder=pb.Vector3(**dict(zip("xyz", r["shoulder"]))), axis=pb.Vector3(**dict(zip("xyz", r["axis"]))),
-                wrist_back_m=r["wrist_back_m"], approach_m=r["approach_m"], max_m=r["max_m"],
-                min_axis_m=r["min_axis_m"])
+            options["arm_reach"] = self.arm_reach
         (x0, y0, z0), (x1, y1, z1) = WORKSPACE
         request = pb.PlanGraspsRequest(
             depth=pb.DepthImage(width=pose.width, height=pose.height, encoding=pb.DEPTH_ENCODING_FLOAT32_M,

@@ -69,13 +69,7 @@ pub struct Metrics {
 }
 
 /// The `cause` label values of `mvgrasp_grasp_candidates_refused_total`.
-pub const REFUSAL_CAUSES: [&str; 5] = [
-    "table",
-    "neighbour",
-    "own_points",
-    "outside_approach_cone",
-    "out_of_reach",
-];
+pub const REFUSAL_CAUSES: [&str; 5] = mvgrasp_core::ObjectRefusals::CAUSES;
 
 /// The `reason` label values of `mvgrasp_dropped_views_total`.
 pub const DROP_REASONS: [&str; 3] = ["queue_full", "caller_gone", "deadline"];

@@ -197,16 +197,12 @@ impl PlannerState {
             .grasps_outside_approach_cone
             .inc_by(plan.outside_approach_cone as u64);
         self.metrics.grasps_out_of_reach.inc_by(plan.out_of_reach as u64);
-        let refused = plan.objects.iter().fold([0; 5], |sum, o| {
-            let r = &o.refused;
-            [
-                sum[0] + r.table,
-                sum[1] + r.neighbour,
-                sum[2] + r.own_points,
-                sum[3] + r.outside_approach_cone,
-                sum[4] + r.out_of_reach,
-            ]
-        });
+        let mut refused = [0; 5];
+        for o in &plan.objects {
+            for (sum, n) in refused.iter_mut().zip(o.refused.counts()) {
+                *sum += n;
+            }
+        }
         for (cause, n) in crate::metrics::REFUSAL_CAUSES.iter().zip(refused) {
             self.metrics
                 .candidates_refused

@@ -85,6 +85,28 @@ pub struct ObjectRefusals {
     pub out_of_reach: usize,
 }
 
+impl ObjectRefusals {
+    /// The causes' names, in the order of [`Self::counts`].
+    pub const CAUSES: [&'static str; 5] = [
+        "table",
+        "neighbour",
+        "own_points",
+        "outside_approach_cone",
+        "out_of_reach",
+    ];
+
+    /// The count of each of [`Self::CAUSES`].
+    pub fn counts(&self) -> [usize; 5] {
+        [
+            self.table,
+            self.neighbour,
+            self.own_points,
+            self.outside_approach_cone,
+            self.out_of_reach,
+        ]
+    }
+}
+
 /// A rendered view with its maps, when [`PlanOptions::keep_views`](super::PlanOptions::keep_views) is set.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DebugView {

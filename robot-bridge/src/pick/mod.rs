@@ -307,48 +307,37 @@ impl PickConfig {
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::{Matrix3, Rotation3};
-
     use super::*;
 
     /// Grasps around a cell's table: positions within 0.35 m of the world
     /// origin and up to 0.25 m high, approaches from straight down to 10
     /// degrees past horizontal, any turn about the approach, any opening;
-    /// `xorshift` for a fixed sample.
+    /// a fixed sample.
     fn sample_grasps(n: usize) -> Vec<(Isometry3<f64>, f64)> {
-        let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
-        let mut uniform = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = mvgrasp_core::rng::SplitMix64::new(0x9e37_79b9_7f4a_7c15);
         (0..n)
             .map(|_| {
-                let at = Vector3::new(0.7 * uniform() - 0.35, 0.7 * uniform() - 0.35, 0.25 * uniform());
+                let at = Vector3::new(
+                    rng.uniform(-0.35, 0.35),
+                    rng.uniform(-0.35, 0.35),
+                    rng.uniform(0.0, 0.25),
+                );
                 let (tilt, heading, turn) = (
-                    uniform() * 100f64.to_radians(),
-                    uniform() * 2.0 * PI,
-                    uniform() * 2.0 * PI,
+                    rng.uniform(0.0, 100f64.to_radians()),
+                    rng.uniform(0.0, 2.0 * PI),
+                    rng.uniform(0.0, 2.0 * PI),
                 );
                 let approach = Vector3::new(
                     tilt.sin() * heading.cos(),
                     tilt.sin() * heading.sin(),
                     -tilt.cos(),
                 );
-                let helper = if approach.x.abs() < 0.9 {
-                    Vector3::x()
-                } else {
-                    Vector3::y()
-                };
-                let x0 = approach.cross(&helper).normalize();
-                let closing = x0 * turn.cos() + approach.cross(&x0) * turn.sin();
-                let rotation = Matrix3::from_columns(&[closing, approach.cross(&closing), approach]);
-                let rotation =
-                    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rotation));
+                // A frame whose z is the approach, turned about it.
+                let along = mvgrasp_core::camera_looking_at(Vector3::zeros(), approach).rotation;
+                let rotation = along * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn);
                 (
                     Isometry3::from_parts(Translation3::from(at), rotation),
-                    0.14 * uniform(),
+                    rng.uniform(0.0, 0.14),
                 )
             })
             .collect()
