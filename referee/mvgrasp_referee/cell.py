@@ -12,7 +12,9 @@ with plain MuJoCo and changed only where stated:
   kinematics and the simulated arm are the same robot (checked by a test);
 - the gripper's finger actuators get a force limit (`GRIP_TORQUE_NM`) that
   makes the squeeze the one stated in `GRIP_FORCE_N`, measured by a test;
-- pads get rubber friction (`objects.FRICTION_PAD`).
+- pads get rubber friction (`objects.FRICTION_PAD`);
+- the two fingers move mirrored, as the one motor of the real 2F-140 drives
+  them (the file gives each its own servo).
 """
 
 import math
@@ -180,6 +182,17 @@ def _gripper_spec():
         a.forcelimited = True
     for eq in grip.equalities:
         eq.solref = [2 * TIMESTEP_S, 1.0]
+    # One motor drives both fingers of the 2F-140 through one linkage: they
+    # move together, mirrored. The file gives each finger its own servo, so
+    # two stalled servos let a grasped object and both fingers float
+    # sideways together (docs/experiments/2026-11-29-coupled-fingers.md).
+    # As MuJoCo Menagerie's 2F-85 does, a joint equality mirrors them.
+    mirror = grip.add_equality()
+    mirror.type = mujoco.mjtEq.mjEQ_JOINT
+    mirror.name = "fingers_mirrored"
+    mirror.name1, mirror.name2 = "right_outer_knuckle_joint", "finger_joint"
+    mirror.data[:5] = [0.0, -1.0, 0.0, 0.0, 0.0]  # right = -left
+    mirror.solref = [2 * TIMESTEP_S, 1.0]
     # The file does not say `angle="radian"` (robosuite merges it into a
     # model that does): read as degrees, its 0-0.7 knuckle range would be 0-0.7 deg.
     grip.compiler.degree = False
@@ -382,6 +395,9 @@ def bin_top(cell):
 
 
 def in_bin(position):
+    """Within the bin's walls, resting on its floor or on what is already in
+    it, below where the bridge lets go (an object on top of a tall one
+    standing in the bin is in it)."""
     bx, by = BIN_CENTRE_M
     return (abs(position[0] - bx) < BIN_INNER_HALF_M + 0.01 and abs(position[1] - by) < BIN_INNER_HALF_M + 0.01
-            and position[2] < BIN_WALL_M[1] + 0.05)
+            and position[2] < DROP_HEIGHT_M)

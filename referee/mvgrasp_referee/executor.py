@@ -6,9 +6,11 @@ through the bridge's own 1 cm IK samples at `TOOL_SPEED`. The gripper opens
 to the step's width, closes until the fingers stall, the object is lifted
 (the bridge's 15 cm), shaken, carried over the bin and released. After the
 release, and after a failed attempt once the hand has opened, the arm is
-put back at its park pose (not simulated: `park`).
+put back at its park pose (not simulated: `park`); a released object is
+judged where it comes to rest.
 
-Outcomes: `success` (the object is in the bin), `empty` (the fingers closed
+Outcomes: `success` (the object is in the bin, on its floor or on what
+lies in it), `empty` (the fingers closed
 on nothing), `slip-lift`, `slip-shake`, `dropped-carry`, `collision`
 (the arm, not its pads, touched the table, the bin or another object on the
 way in and the object was not lifted). A move that is not finished within
@@ -33,6 +35,7 @@ CLOSE_SPEED_M_S = 0.14
 CLOSE_MAX_S = 1.5  # after the ramp
 SHAKE = (0.25, 2, 2.0)  # wrist 3 amplitude (rad), cycles, Hz
 HELD_LIFT_M = 0.05  # an object held after a lift is this much above where it was
+REST_MAX_S = 2.0  # how long a released object may take to come to rest
 
 
 class Run:
@@ -228,9 +231,25 @@ def execute(cell, plan_steps, target, gap_table, close_speed_m_s=CLOSE_SPEED_M_S
     if not lifted:
         return "timeout", _details(run, picked)
     park(cell)
-    if picked is not None and cellmod.in_bin(cell.object_pose(picked)[0]):
+    if picked is not None and cellmod.in_bin(come_to_rest(cell, picked)):
         return "success", _details(run, picked)
     return "dropped-carry", _details(run, picked)
+
+
+def come_to_rest(cell, index, max_s=REST_MAX_S):
+    """Lets the scene run until object `index` has moved less than 1 mm in
+    0.1 s (or `max_s`), and returns its position: an object let go over the
+    bin is judged where it lands, not while it falls."""
+    window = int(0.1 / cellmod.TIMESTEP_S)
+    last = cell.object_pose(index)[0].copy()
+    for _ in range(int(max_s / 0.1)):
+        for _ in range(window):
+            mujoco.mj_step(cell.model, cell.data)
+        now = cell.object_pose(index)[0].copy()
+        if np.linalg.norm(now - last) < 0.001:
+            break
+        last = now
+    return now
 
 
 def park(cell):

@@ -109,9 +109,18 @@ def pad_forces(cell):
     return forces
 
 
-def squeeze_probe(width_m, settle_s=1.5):
-    """Closes on a fixed box `width_m` wide, tool down, and returns the
-    (left, right) pad forces (N) and the pad gap (m) once the fingers stall."""
+def knuckles(cell):
+    """Both knuckle angles, the right one's sign turned: equal when the
+    fingers mirror each other."""
+    m = cell.model
+    right = cell.data.qpos[m.jnt_qposadr[m.joint("grip/right_outer_knuckle_joint").id]]
+    return knuckle(cell), -float(right)
+
+
+def close_on_box(width_m, settle_s=1.5, offset_m=0.0):
+    """Closes on a fixed box `width_m` wide, tool down, its centre `offset_m`
+    off the hand's along the closing axis, and returns the cell once the
+    fingers stall."""
     arm_q = np.array([0.0, -1.2, 1.6, -1.97, -1.5708, 0.0])
     probe = cellmod.build([], [])
     probe.set_arm(arm_q)
@@ -119,7 +128,7 @@ def squeeze_probe(width_m, settle_s=1.5):
     p, r = flange_frame(probe)
     tcp = p + r @ tcp_in_flange(probe, width_m)
     half = [width_m / 2 if abs(r[i, 1]) > 0.9 else 0.02 for i in range(3)]
-    c = cellmod.build([], [], fixtures=[("probe", half, tcp - r[:, 2] * 0.015)])
+    c = cellmod.build([], [], fixtures=[("probe", half, tcp - r[:, 2] * 0.015 + r[:, 1] * offset_m)])
     c.set_arm(arm_q)
     set_command(c, command_for_width(gap_table(c), width_m + 0.02))
     for _ in range(250):
@@ -127,4 +136,11 @@ def squeeze_probe(width_m, settle_s=1.5):
     set_command(c, CLOSED_RAD)
     for _ in range(int(settle_s / cellmod.TIMESTEP_S)):
         mujoco.mj_step(c.model, c.data)
+    return c
+
+
+def squeeze_probe(width_m, settle_s=1.5):
+    """Closes on a fixed box `width_m` wide, tool down, and returns the
+    (left, right) pad forces (N) and the pad gap (m) once the fingers stall."""
+    c = close_on_box(width_m, settle_s)
     return pad_forces(c), pad_gap(c)

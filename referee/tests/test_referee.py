@@ -230,6 +230,17 @@ class CellTest(unittest.TestCase):
             self.assertLess(abs(left - right) / max(left, right), 0.15)
             self.assertAlmostEqual(gap, width, delta=0.0015, msg="pads sink under 1.5 mm into a rigid box")
 
+    def test_the_fingers_move_mirrored(self):
+        """One motor drives both fingers: closing on a fixed box off the
+        hand's centre, the knuckles stay mirrored (free fingers wrap around
+        it: 0.29 and 0.56 rad apart), and 3 cm off the far pad stays off."""
+        for offset in (0.015, 0.03):
+            c = gripper.close_on_box(0.06, offset_m=offset)
+            left, right = gripper.knuckles(c)
+            self.assertLess(abs(left - right), 0.05, f"{offset} m off: {left:.3f} / {right:.3f} rad")
+        self.assertLess(min(gripper.pad_forces(c)), 1.0)
+        self.assertGreater(gripper.pad_gap(c), 0.075)
+
     def test_the_tcp_sits_between_the_fingertips(self):
         tcp = gripper.tcp_in_flange(self.cell)
         self.assertLess(np.linalg.norm(tcp[:2]), 1e-6)
@@ -419,6 +430,30 @@ class BinTest(unittest.TestCase):
                 self.assertLessEqual(top, 0.1 + top_of_body + 0.5 * float(np.max(body.extents_m)))
             else:
                 self.assertEqual(top, 0.0)
+
+    def test_in_the_bin_is_within_its_walls_at_any_height_below_the_drop(self):
+        bx, by = cell.BIN_CENTRE_M
+        self.assertTrue(cell.in_bin((bx, by, 0.02)))
+        self.assertTrue(cell.in_bin((bx + 0.1, by - 0.1, 0.25)), "on top of a tall object standing in the bin")
+        self.assertFalse(cell.in_bin((bx, by, cell.DROP_HEIGHT_M + 0.01)), "above where the bridge lets go")
+        self.assertFalse(cell.in_bin((bx + cell.BIN_INNER_HALF_M + 0.05, by, 0.02)), "beside the bin")
+
+    def test_a_released_object_is_judged_where_it_lands(self):
+        """Let go 20 cm over the bin's floor, the object is still falling
+        after 0.1 s; come_to_rest returns it on the floor, at rest."""
+        body = objects.make_body(pools.HOUSEHOLD[0], np.random.default_rng(0))
+        bx, by = cell.BIN_CENTRE_M
+        c = cell.build([body], [((bx, by, 0.2), (1.0, 0.0, 0.0, 0.0))])
+        for _ in range(int(0.1 / cell.TIMESTEP_S)):
+            mujoco.mj_step(c.model, c.data)
+        self.assertGreater(c.object_pose(0)[0][2], 0.1)
+        rest = executor.come_to_rest(c, 0)
+        self.assertLess(rest[2], 0.1)
+        self.assertTrue(cell.in_bin(rest))
+        before = c.object_pose(0)[0].copy()
+        for _ in range(int(0.2 / cell.TIMESTEP_S)):
+            mujoco.mj_step(c.model, c.data)
+        self.assertLess(np.linalg.norm(c.object_pose(0)[0] - before), 0.002)
 
     def test_a_touch_names_the_object_not_the_table(self):
         body = objects.make_body(pools.HOUSEHOLD[0], np.random.default_rng(0))
