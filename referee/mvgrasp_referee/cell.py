@@ -180,8 +180,6 @@ def _gripper_spec():
         a.set_to_position(kp=GRIP_KP, kv=GRIP_KV)
         a.forcerange = [-GRIP_TORQUE_NM, GRIP_TORQUE_NM]
         a.forcelimited = True
-    for eq in grip.equalities:
-        eq.solref = [2 * TIMESTEP_S, 1.0]
     # One motor drives both fingers of the 2F-140 through one linkage: they
     # move together, mirrored. The file gives each finger its own servo, so
     # two stalled servos let a grasped object and both fingers float
@@ -192,7 +190,8 @@ def _gripper_spec():
     mirror.name = "fingers_mirrored"
     mirror.name1, mirror.name2 = "right_outer_knuckle_joint", "finger_joint"
     mirror.data[:5] = [0.0, -1.0, 0.0, 0.0, 0.0]  # right = -left
-    mirror.solref = [2 * TIMESTEP_S, 1.0]
+    for eq in grip.equalities:
+        eq.solref = [2 * TIMESTEP_S, 1.0]
     # The file does not say `angle="radian"` (robosuite merges it into a
     # model that does): read as degrees, its 0-0.7 knuckle range would be 0-0.7 deg.
     grip.compiler.degree = False
@@ -395,9 +394,9 @@ def bin_top(cell):
 
 
 def in_bin(position):
-    """Within the bin's walls, resting on its floor or on what is already in
-    it, below where the bridge lets go (an object on top of a tall one
-    standing in the bin is in it)."""
+    """Within the bin's walls, resting on its floor (the table's top) or on
+    what is already in it, below where the bridge lets go (an object on top
+    of a tall one standing in the bin is in it)."""
     bx, by = BIN_CENTRE_M
     return (abs(position[0] - bx) < BIN_INNER_HALF_M + 0.01 and abs(position[1] - by) < BIN_INNER_HALF_M + 0.01
-            and position[2] < DROP_HEIGHT_M)
+            and -0.02 < position[2] < DROP_HEIGHT_M)

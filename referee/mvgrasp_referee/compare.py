@@ -11,6 +11,8 @@ import json
 import random
 from collections import defaultdict
 
+from .report import cleared
+
 
 def _key(e):
     return (e["scenario"], e["pool"], e["camera"], e["episode"])
@@ -52,15 +54,15 @@ def table(base, new):
              "|---|---:|---:|---:|---|---|---:|---:|"]
     for name in [s for s in ("isolated", "packed", "pile") if s in groups] + ["all"]:
         pairs = groups[name]
-        diffs = [n["removed"] - b["removed"] for b, n in pairs]
+        diffs = [cleared(n) - cleared(b) for b, n in pairs]
         lo, hi = bootstrap(diffs)
         rate = []
         for side in (0, 1):
             tried, held = map(sum, zip(*(_attempts(p[side]) for p in pairs)))
             rate.append(f"{held / tried:.3f} ({held}/{tried})" if tried else "-")
         lines.append(
-            f"| {name} | {sum(b['initial'] for b, _ in pairs)} | {sum(b['removed'] for b, _ in pairs)} "
-            f"| {sum(n['removed'] for _, n in pairs)} | {sum(diffs):+d} ({lo:+d} to {hi:+d}) "
+            f"| {name} | {sum(b['initial'] for b, _ in pairs)} | {sum(cleared(b) for b, _ in pairs)} "
+            f"| {sum(cleared(n) for _, n in pairs)} | {sum(diffs):+d} ({lo:+d} to {hi:+d}) "
             f"| {sum(d > 0 for d in diffs)} / {sum(d < 0 for d in diffs)} | {rate[0]} | {rate[1]} |")
     return "\n".join(lines)
 

@@ -241,7 +241,7 @@ def come_to_rest(cell, index, max_s=REST_MAX_S):
     0.1 s (or `max_s`), and returns its position: an object let go over the
     bin is judged where it lands, not while it falls."""
     window = int(0.1 / cellmod.TIMESTEP_S)
-    last = cell.object_pose(index)[0].copy()
+    last = now = cell.object_pose(index)[0].copy()
     for _ in range(int(max_s / 0.1)):
         for _ in range(window):
             mujoco.mj_step(cell.model, cell.data)

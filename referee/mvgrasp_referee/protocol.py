@@ -222,8 +222,17 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
             record["end"] = "attempts"
     finally:
         cam.close()
-    record["removed"] = len(removed)
+    record["removed"] = len(removed.intersection(initial))
     record["bin_top_m"] = round(cellmod.bin_top(cell), 3)
-    record["lost"] = sum(1 for i in initial if i not in removed and not scenes.on_table(cell, i))
+    record["carried"], record["lost"] = left_the_table(cell, initial, removed)
     return record
+
+
+def left_the_table(cell, initial, removed):
+    """Of the objects at the start that no attempt picked (not in
+    `removed`) and that are off the table at the end: how many lie in the
+    bin (carried along with a picked one) and how many elsewhere (lost)."""
+    gone = [i for i in initial if i not in removed and not scenes.on_table(cell, i)]
+    carried = sum(cellmod.in_bin(cell.object_pose(i)[0]) for i in gone)
+    return int(carried), len(gone) - int(carried)
 

@@ -85,6 +85,21 @@ class StatsTest(unittest.TestCase):
         self.assertEqual((r["attempts"], r["successes"], r["removed"], r["initial"]), (2, 1, 1, 3))
         self.assertEqual((r["no_grasp"], r["unreachable"], r["failures"]["empty"]), (1, 5, 1))
 
+    def test_objects_carried_into_the_bin_are_cleared_not_credited_to_an_attempt(self):
+        e = {"scenario": "packed", "camera": "topdown", "pool": "test-a", "removed": 1, "carried": 1,
+             "initial": 3, "end": "clear", "lost": 1, "attempts": [{"outcome": "success", "plan_ms": 5.0,
+                                                                    "unreachable": 0}]}
+        r = report.rows([e])[0]
+        self.assertEqual((r["successes"], r["removed"], r["carried"], r["cleared"]), (1, 1, 1, 2))
+        self.assertEqual(r["cleared_ci95"], [round(v, 4) for v in report.wilson(2, 3)])
+        self.assertIn("| 0.67 (", report.markdown({"model_version": "m", "backend": "b", "policy": "p",
+                                                    "min_quality": 0.0, "max_grasps": 1, "suite": "s", "seed": 1,
+                                                    "resolution": "r", "noise": False, "command": "c",
+                                                    "wall_s": 1.0, "workers": 1}, [r]))
+        self.assertTrue(report.check([r]))
+        with self.assertRaisesRegex(AssertionError, r"\(cleared 4\) of 3"):
+            report.check([{**r, "carried": 3, "cleared": 4}])
+
 
 class CompareTest(unittest.TestCase):
     @staticmethod
@@ -103,6 +118,11 @@ class CompareTest(unittest.TestCase):
         self.assertTrue(-6 < lo < 1 < hi < 6, (lo, hi))
         self.assertEqual(compare.bootstrap([1, 1, -1, 0, 0, 0]), (lo, hi))
         self.assertEqual(compare.bootstrap([2, 2, 2]), (6, 6))
+
+    def test_objects_carried_along_count_as_cleared(self):
+        base, new = self.run_of([1, 0]), self.run_of([1, 0])
+        new["episodes"][0]["carried"] = 1
+        self.assertIn("| isolated | 2 | 1 | 2 | +1 (", compare.table(base, new))
 
     def test_runs_of_other_episodes_are_refused(self):
         with self.assertRaises(SystemExit):
@@ -437,6 +457,7 @@ class BinTest(unittest.TestCase):
         self.assertTrue(cell.in_bin((bx + 0.1, by - 0.1, 0.25)), "on top of a tall object standing in the bin")
         self.assertFalse(cell.in_bin((bx, by, cell.DROP_HEIGHT_M + 0.01)), "above where the bridge lets go")
         self.assertFalse(cell.in_bin((bx + cell.BIN_INNER_HALF_M + 0.05, by, 0.02)), "beside the bin")
+        self.assertFalse(cell.in_bin((bx, by, -0.5)), "fallen below the table")
 
     def test_a_released_object_is_judged_where_it_lands(self):
         """Let go 20 cm over the bin's floor, the object is still falling
@@ -454,6 +475,19 @@ class BinTest(unittest.TestCase):
         for _ in range(int(0.2 / cell.TIMESTEP_S)):
             mujoco.mj_step(c.model, c.data)
         self.assertLess(np.linalg.norm(c.object_pose(0)[0] - before), 0.002)
+
+    def test_objects_off_the_table_are_carried_in_the_bin_and_lost_elsewhere(self):
+        """Of five objects: one picked, one on the table, one in the bin
+        that no attempt picked, two off the table outside the bin."""
+        bodies = [objects.make_body(pools.HOUSEHOLD[0], np.random.default_rng(k)) for k in range(5)]
+        bx, by = cell.BIN_CENTRE_M
+        poses = [((bx, by, 0.05), (1.0, 0.0, 0.0, 0.0)), ((0.0, 0.0, 0.05), (1.0, 0.0, 0.0, 0.0)),
+                 ((bx + 0.05, by + 0.05, 0.1), (1.0, 0.0, 0.0, 0.0)), ((0.0, 0.6, 0.05), (1.0, 0.0, 0.0, 0.0)),
+                 ((bx, by, -0.5), (1.0, 0.0, 0.0, 0.0))]
+        c = cell.build(bodies, poses)
+        mujoco.mj_forward(c.model, c.data)
+        self.assertEqual(protocol.left_the_table(c, range(5), {0}), (1, 2))
+        self.assertEqual(protocol.left_the_table(c, [0, 1], set()), (1, 0), "the unpicked one in the bin")
 
     def test_a_touch_names_the_object_not_the_table(self):
         body = objects.make_body(pools.HOUSEHOLD[0], np.random.default_rng(0))

@@ -114,8 +114,13 @@ pub struct PlannerSection {
     /// Deadline of one planning call (s).
     pub timeout_s: f64,
     /// Only approaches within this cone are asked of the planner (what this
-    /// cell's arm can execute); unset: any.
+    /// cell's arm can execute); by default from above within 60 degrees,
+    /// as the referee judges the cell (`half_angle_deg = 180`: any).
     pub approach_cone: Option<ConeConfig>,
+    /// Smallest grasp quality asked of the planner (0: every grasp that
+    /// passes its checks, as the referee judges the cell; grasps the
+    /// referee tried under 0.5 held 3 times in 4).
+    pub min_quality: f32,
     /// Ask the planner only for grasps this arm reaches at the pre-grasp
     /// (`PickConfig::arm_reach`, from the calibration); false: any position.
     pub arm_reach: bool,
@@ -211,7 +216,11 @@ impl Default for BridgeConfig {
             planner: PlannerSection {
                 endpoint: None,
                 timeout_s: 5.0,
-                approach_cone: None,
+                approach_cone: Some(ConeConfig {
+                    axis: [0.0, 0.0, -1.0],
+                    half_angle_deg: 60.0,
+                }),
+                min_quality: 0.0,
                 arm_reach: true,
                 tls_ca: None,
                 tls_cert: None,
@@ -293,6 +302,10 @@ impl BridgeConfig {
             }
         }
         self.approach_cone()?;
+        let q = self.planner.min_quality;
+        if !(0.0..=1.0).contains(&q) {
+            return Err(bad("planner.min_quality", format!("{q} is not in [0, 1]")));
+        }
         for (field, value, max) in [
             ("pick.approach_clearance_m", self.pick.approach_clearance_m, 0.1),
             ("pick.max_lift_tilt_deg", self.pick.max_lift_tilt_deg, 60.0),
@@ -375,11 +388,12 @@ impl BridgeConfig {
             .transpose()
     }
 
-    /// What to ask of the planner: `pick.max_grasps`, `planner.approach_cone`
-    /// and, with `planner.arm_reach`, where `arm` reaches.
+    /// What to ask of the planner: `pick.max_grasps`, `planner.min_quality`,
+    /// `planner.approach_cone` and, with `planner.arm_reach`, where `arm` reaches.
     pub fn ask(&self, arm: &crate::ur5e::Ur5e) -> Result<crate::planner::Ask> {
         Ok(crate::planner::Ask {
             max_grasps: self.pick.max_grasps,
+            min_quality: self.planner.min_quality,
             approach_cone: self.approach_cone()?,
             arm_reach: match self.planner.arm_reach {
                 true => Some(self.pick_config()?.arm_reach(arm)?),
@@ -454,6 +468,8 @@ mod tests {
                 "[planner]\napproach_cone = { axis = [0.0, 0.0, -1.0], half_angle_deg = 0.0 }\n",
                 "planner.approach_cone",
             ),
+            ("[planner]\nmin_quality = 1.5\n", "planner.min_quality"),
+            ("[planner]\nmin_quality = nan\n", "planner.min_quality"),
             (
                 "[robot]\nfingertip_travel = [[0.1, 0.0], [0.05, 0.01]]\n",
                 "robot.fingertip_travel",
@@ -477,7 +493,29 @@ mod tests {
         let cone = config.approach_cone().unwrap().unwrap();
         assert!((cone.axis - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-12);
         assert!((cone.half_angle_rad - 60f64.to_radians()).abs() < 1e-12);
-        assert_eq!(BridgeConfig::default().approach_cone().unwrap(), None);
+        let default = BridgeConfig::default()
+            .approach_cone()
+            .unwrap()
+            .expect("from above by default");
+        assert!((default.axis - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-12);
+        assert!((default.half_angle_rad - 60f64.to_radians()).abs() < 1e-12);
+        let any = BridgeConfig::from_toml(
+            "[planner]\napproach_cone = { axis = [0.0, 0.0, -1.0], half_angle_deg = 180.0 }\n",
+        )
+        .unwrap();
+        let any = any.approach_cone().unwrap().unwrap();
+        assert!(
+            any.allows(&Vector3::new(0.0, 0.0, 1.0)),
+            "180 degrees: any approach"
+        );
+    }
+
+    #[test]
+    fn the_min_quality_asked_is_every_grasp_unless_set() {
+        let arm = crate::ur5e::Ur5e::default();
+        assert_eq!(BridgeConfig::default().ask(&arm).unwrap().min_quality, 0.0);
+        let set = BridgeConfig::from_toml("[planner]\nmin_quality = 0.5\n").unwrap();
+        assert_eq!(set.ask(&arm).unwrap().min_quality, 0.5);
     }
 
     #[test]

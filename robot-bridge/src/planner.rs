@@ -202,14 +202,13 @@ pub(crate) fn obstacles(
     (boxes, table)
 }
 
-/// Smallest quality a grasp needs, for both planners (the service's default is 0).
-pub const MIN_QUALITY: f32 = 0.5;
-
 /// What the bridge asks of either planner besides the frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Ask {
     /// At most this many grasps.
     pub max_grasps: usize,
+    /// Only grasps of at least this quality (`planner.min_quality`).
+    pub min_quality: f32,
     /// Only approaches within this cone (`planner.approach_cone`).
     pub approach_cone: Option<ApproachCone>,
     /// Only grasps the arm reaches (`planner.arm_reach`).
@@ -221,6 +220,7 @@ impl Ask {
     pub fn any(max_grasps: usize) -> Self {
         Self {
             max_grasps,
+            min_quality: 0.0,
             approach_cone: None,
             arm_reach: None,
         }
@@ -254,7 +254,7 @@ pub fn plan_locally(scene: &SceneFiles, ask: &Ask) -> Result<PlannedScene> {
     };
     let options = PlanOptions {
         max_grasps: ask.max_grasps,
-        min_quality: MIN_QUALITY,
+        min_quality: ask.min_quality,
         approach_cone: ask.approach_cone,
         arm_reach: ask.arm_reach,
         ..PlanOptions::default()
@@ -327,7 +327,7 @@ pub fn plan_remotely(
         .map_err(|e| Error::Io(format!("async runtime: {e}")))?;
     let request = pb::PlanGraspsRequest {
         max_grasps: ask.max_grasps as u32,
-        min_quality: Some(MIN_QUALITY),
+        min_quality: Some(ask.min_quality),
         approach_cone: ask.approach_cone.map(|c| pb::ApproachCone {
             axis: Some(message(&c.axis)),
             half_angle_rad: c.half_angle_rad,
