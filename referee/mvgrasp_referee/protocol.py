@@ -233,6 +233,6 @@ def left_the_table(cell, initial, removed):
     `removed`) and that are off the table at the end: how many lie in the
     bin (carried along with a picked one) and how many elsewhere (lost)."""
     gone = [i for i in initial if i not in removed and not scenes.on_table(cell, i)]
-    carried = sum(cellmod.in_bin(cell.object_pose(i)[0]) for i in gone)
-    return int(carried), len(gone) - int(carried)
+    carried = sum(1 for i in gone if cellmod.in_bin(cell.object_pose(i)[0]))
+    return carried, len(gone) - carried
 

@@ -101,9 +101,9 @@ def markdown(meta, table):
         f"{_cell_settings(meta)}. Command: `{meta['command']}`.",
         "",
         "Success = attempts whose object reached the bin / attempts (95% Wilson interval); cleared = objects "
-        "in the bin / objects at the start (carried: of those, objects that went in with a picked one). Unreachable grasps are counted apart (not attempts): the robot-bridge "
-        "refused them (IK, its collision model) or the simulated arm touched something on the way to the "
-        "pre-grasp; the next grasp was tried.",
+        "in the bin / objects at the start (carried: of those, objects that went in with a picked one). "
+        "Unreachable grasps are counted apart (not attempts): the robot-bridge refused them (IK, its collision "
+        "model) or the simulated arm touched something on the way to the pre-grasp; the next grasp was tried.",
         "",
         "| scenario | camera | pool | episodes | attempts | success | cleared | carried | no grasp | unreachable | "
         "empty | slip lift | slip shake | dropped | collision | median plan ms |",
@@ -114,7 +114,8 @@ def markdown(meta, table):
         lines.append(
             f"| {r['scenario']} | {r['camera']} | {r['pool']} | {r['episodes']} | {r['attempts']} | "
             f"{fmt_rate(r['successes'], r['attempts'], r['success_ci95'])} | "
-            f"{fmt_rate(r['cleared'], r['initial'], r['cleared_ci95'])} | {r.get('carried', 0)} | {r['no_grasp']} | {r['unreachable']} | "
+            f"{fmt_rate(r['cleared'], r['initial'], r['cleared_ci95'])} | {r['carried']} | {r['no_grasp']} | "
+            f"{r['unreachable']} | "
             f"{f['empty']} | {f['slip-lift']} | {f['slip-shake']} | {f['dropped-carry']} | {f['collision']} | "
             f"{r['median_plan_ms']} |")
     lines += ["", f"Wall time {meta['wall_s']:.0f} s on {meta['workers']} worker(s).", ""]

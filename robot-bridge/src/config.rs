@@ -118,8 +118,8 @@ pub struct PlannerSection {
     /// as the referee judges the cell (`half_angle_deg = 180`: any).
     pub approach_cone: Option<ConeConfig>,
     /// Smallest grasp quality asked of the planner (0: every grasp that
-    /// passes its checks, as the referee judges the cell; grasps the
-    /// referee tried under 0.5 held 3 times in 4).
+    /// passes its checks, as the referee judges the cell;
+    /// docs/experiments/2026-11-30-carried-and-the-bridges-request.md).
     pub min_quality: f32,
     /// Ask the planner only for grasps this arm reaches at the pre-grasp
     /// (`PickConfig::arm_reach`, from the calibration); false: any position.
@@ -302,15 +302,12 @@ impl BridgeConfig {
             }
         }
         self.approach_cone()?;
-        let q = self.planner.min_quality;
-        if !(0.0..=1.0).contains(&q) {
-            return Err(bad("planner.min_quality", format!("{q} is not in [0, 1]")));
-        }
         for (field, value, max) in [
             ("pick.approach_clearance_m", self.pick.approach_clearance_m, 0.1),
             ("pick.max_lift_tilt_deg", self.pick.max_lift_tilt_deg, 60.0),
             ("pick.pregrasp_extra_m", self.pick.pregrasp_extra_m, 0.5),
             ("recovery.unlock_after_s", self.recovery.unlock_after_s, 60.0),
+            ("planner.min_quality", f64::from(self.planner.min_quality), 1.0),
         ] {
             if !(value.is_finite() && (0.0..=max).contains(&value)) {
                 return Err(bad(field, format!("{value} is not in [0, {max}]")));
