@@ -251,7 +251,7 @@ fn json_of_response(r: &pb::PlanGraspsResponse) -> serde_json::Value {
 
 /// An object's candidate grasps lost, by cause (the answer's `refused`):
 /// each cause's name, how `plan` words it, and the count.
-fn refusals(o: &pb::DetectedObject) -> [(&'static str, &'static str, u32); 5] {
+fn refusals(o: &pb::DetectedObject) -> [(&'static str, &'static str, u32); 7] {
     let r = o.refused.unwrap_or_default();
     [
         ("table", "hit the table", r.table),
@@ -263,6 +263,8 @@ fn refusals(o: &pb::DetectedObject) -> [(&'static str, &'static str, u32); 5] {
             r.outside_approach_cone,
         ),
         ("out_of_reach", "out of the arm's reach", r.out_of_reach),
+        ("too_wide", "wider than the gripper opens", r.too_wide),
+        ("no_pose", "no pose at the peak", r.no_pose),
     ]
 }
 
@@ -283,7 +285,7 @@ fn no_grasp_reason(o: &pb::DetectedObject) -> String {
         .map(|(_, why, n)| format!("{n} {why}"))
         .collect();
     if parts.is_empty() {
-        "none refused: no candidate cleared min_quality in its views, or the answer was full".to_owned()
+        "none refused: no peak cleared min_quality in its views, or the answer was full".to_owned()
     } else {
         format!("candidates refused: {}", parts.join(", "))
     }
@@ -520,14 +522,16 @@ mod tests {
         let refused = object(pb::ObjectRefusals {
             table: 1,
             out_of_reach: 3,
+            too_wide: 2,
             ..Default::default()
         });
         assert_eq!(
             no_grasp_reason(&refused),
-            "candidates refused: 1 hit the table, 3 out of the arm's reach"
+            "candidates refused: 1 hit the table, 3 out of the arm's reach, 2 wider than the gripper opens"
         );
         let counts = refusal_counts(&refused);
-        assert_eq!(counts.len(), 5);
+        assert_eq!(counts.len(), 7);
+        assert!(counts.contains(&("too_wide".to_owned(), 2.into())));
         assert!(counts.contains(&("out_of_reach".to_owned(), 3.into())));
         assert!(no_grasp_reason(&object(Default::default())).starts_with("none refused"));
     }

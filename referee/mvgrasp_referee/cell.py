@@ -41,6 +41,9 @@ BIN_WALL_M = (0.01, 0.09)  # thickness, height
 BIN_FILL_M = 0.25
 DROP_HEIGHT_M = 0.35
 AREA_HALF_M = 0.15  # objects are placed within this square around the origin
+# The square the robot is asked to clear (m, around the origin): the planner's
+# workspace and the objects the referee counts; the parked arm and the bin lie outside.
+TASK_HALF_M = 0.3
 # Out of the camera's way while the picture is taken: over the bin side, tool down.
 PARK = (math.radians(-150), math.radians(-100), math.radians(110), math.radians(-100),
         math.radians(-90), 0.0)

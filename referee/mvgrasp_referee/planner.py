@@ -9,9 +9,11 @@ import time
 import numpy as np
 
 from . import assets
+from . import cell as cellmod
 from .bridge import quat_xyzw
 
-WORKSPACE = ((-0.25, -0.25, -0.05), (0.25, 0.25, 0.45))
+_T = cellmod.TASK_HALF_M
+WORKSPACE = ((-_T, -_T, -0.05), (_T, _T, 0.45))
 POLICIES = {"default": None, "entropy": 1, "all": 2, "top-down": 3, "random": 4}
 
 
@@ -149,7 +151,7 @@ class Planner:
 
 
 # What a detected object's candidate grasps were lost to (`ObjectRefusals`).
-REFUSALS = ("table", "neighbour", "own_points", "outside_approach_cone", "out_of_reach")
+REFUSALS = ("table", "neighbour", "own_points", "outside_approach_cone", "out_of_reach", "too_wide", "no_pose")
 
 
 def bridge_scene(plan):

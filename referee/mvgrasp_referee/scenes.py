@@ -119,6 +119,8 @@ def settle(cell, seconds=SETTLE_S):
 
 
 def on_table(cell, i):
-    """Still on the table and in the area the camera and arm serve."""
+    """Still on the table and in the square the robot is asked to clear
+    (the planner's workspace)."""
     p = cell.object_pose(i)[0]
-    return p[2] > -0.02 and abs(p[0]) < 0.3 and abs(p[1]) < 0.3
+    half = cellmod.TASK_HALF_M
+    return p[2] > -0.02 and abs(p[0]) < half and abs(p[1]) < half

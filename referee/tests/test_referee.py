@@ -27,6 +27,15 @@ def bridge_binary():
                             "or set MVGRASP_ROBOT_BRIDGE")
 
 
+def rendered_depth(c, pose):
+    """The depth frame a camera at `pose` takes of cell `c`."""
+    cam = camera.DepthCamera(c.model, pose.width, pose.height)
+    try:
+        return cam.depth(c.model, c.data, pose)
+    finally:
+        cam.close()
+
+
 class SplitTest(unittest.TestCase):
     def test_pools_are_disjoint_and_cover_every_random_urdf(self):
         self.assertTrue(pools.check_split())
@@ -284,11 +293,7 @@ class CameraTest(unittest.TestCase):
         hit_geom = np.zeros(1, np.int32)
         for kind in camera.CAMERAS:
             pose, _ = camera.sample_pose(kind, np.random.default_rng(3), "424x240")
-            cam = camera.DepthCamera(c.model, pose.width, pose.height)
-            try:
-                depth = cam.depth(c.model, c.data, pose)
-            finally:
-                cam.close()
+            depth = rendered_depth(c, pose)
             points, v, u = camera.back_project(depth, pose)
             self.assertGreater(len(points), 0.3 * depth.size)
             eye = pose.world_from_camera[:3, 3]
@@ -302,6 +307,30 @@ class CameraTest(unittest.TestCase):
                 errors.append(abs(distance - np.linalg.norm(points[k] - eye)))
             self.assertLess(float(np.median(errors)), 0.001, kind)
 
+
+    def test_the_planner_is_shown_the_square_the_referee_counts_and_nothing_else(self):
+        """The request's workspace is the square whose objects the referee
+        counts; in it an empty cell shows the planner no point above the
+        table (the parked arm and the bin lie outside), from every kind of
+        camera."""
+        (x0, y0, _), (x1, y1, z1) = planner.WORKSPACE
+        self.assertEqual((x0, y0, x1, y1), (-cell.TASK_HALF_M, -cell.TASK_HALF_M, cell.TASK_HALF_M,
+                                            cell.TASK_HALF_M))
+        body = objects.make_body(pools.HOUSEHOLD[0], np.random.default_rng(0))
+        for xy, counted in (((0.28, -0.28), True), ((0.0, 0.29), True), ((0.32, 0.0), False)):
+            c = cell.build([body], [((xy[0], xy[1], 0.1), (1.0, 0.0, 0.0, 0.0))])
+            mujoco.mj_forward(c.model, c.data)
+            self.assertEqual(scenes.on_table(c, 0), counted, xy)
+        c = cell.build([], [])
+        mujoco.mj_forward(c.model, c.data)
+        rng = np.random.default_rng(4)
+        for kind in camera.CAMERAS:
+            for _ in range(4):
+                pose, _ = camera.sample_pose(kind, rng, "424x240")
+                p, _, _ = camera.back_project(rendered_depth(c, pose), pose)
+                inside = ((p[:, 0] > x0) & (p[:, 0] < x1) & (p[:, 1] > y0) & (p[:, 1] < y1) & (p[:, 2] < z1)
+                          & (p[:, 2] > 0.005))
+                self.assertEqual(int(inside.sum()), 0, kind)
 
     def test_random_poses_the_parked_arm_hides_the_area_from_are_drawn_again(self):
         c, _ = scenes.make("isolated", "test-b", 1, 0)

@@ -280,6 +280,8 @@ fn object_message(o: &DetectedObject) -> pb::DetectedObject {
             own_points: o.refused.own_points as u32,
             outside_approach_cone: o.refused.outside_approach_cone as u32,
             out_of_reach: o.refused.out_of_reach as u32,
+            too_wide: o.refused.too_wide as u32,
+            no_pose: o.refused.no_pose as u32,
         }),
     }
 }

@@ -53,7 +53,8 @@ pub struct Metrics {
     /// Grasps dropped because the request's arm reach did not reach them.
     pub grasps_out_of_reach: IntCounter,
     /// Candidate grasps refused per object, by cause (`table`, `neighbour`,
-    /// `own_points`, `outside_approach_cone`, `out_of_reach`), as in the
+    /// `own_points`, `outside_approach_cone`, `out_of_reach`, `too_wide`,
+    /// `no_pose`), as in the
     /// answer's `refused`.
     pub candidates_refused: IntCounterVec,
     /// Queued work dropped before inference, by reason.
@@ -69,7 +70,7 @@ pub struct Metrics {
 }
 
 /// The `cause` label values of `mvgrasp_grasp_candidates_refused_total`.
-pub const REFUSAL_CAUSES: [&str; 5] = mvgrasp_core::ObjectRefusals::CAUSES;
+pub const REFUSAL_CAUSES: [&str; 7] = mvgrasp_core::ObjectRefusals::CAUSES;
 
 /// The `reason` label values of `mvgrasp_dropped_views_total`.
 pub const DROP_REASONS: [&str; 3] = ["queue_full", "caller_gone", "deadline"];

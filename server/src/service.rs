@@ -197,7 +197,7 @@ impl PlannerState {
             .grasps_outside_approach_cone
             .inc_by(plan.outside_approach_cone as u64);
         self.metrics.grasps_out_of_reach.inc_by(plan.out_of_reach as u64);
-        let mut refused = [0; 5];
+        let mut refused = [0; crate::metrics::REFUSAL_CAUSES.len()];
         for o in &plan.objects {
             for (sum, n) in refused.iter_mut().zip(o.refused.counts()) {
                 *sum += n;

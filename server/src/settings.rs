@@ -181,6 +181,10 @@ pub struct DecodeSettings {
     /// Quality taken off per 10 cm between the object's visible centre and
     /// the closing line (`DecodeConfig::centre_weight`; 0: quality alone).
     pub centre_weight: f32,
+    /// How much wider than the gripper's stroke a predicted opening may be
+    /// and still be decoded at the full stroke for the hand check to judge
+    /// (`DecodeConfig::wide_slack_m`, m; 0: the network's width alone refuses it).
+    pub wide_slack_m: f64,
 }
 
 impl Default for DecodeSettings {
@@ -189,6 +193,7 @@ impl Default for DecodeSettings {
         Self {
             peaks_per_view: decode.peaks_per_view,
             centre_weight: decode.centre_weight,
+            wide_slack_m: decode.wide_slack_m,
         }
     }
 }
@@ -496,6 +501,10 @@ impl Settings {
         if !(w.is_finite() && (0.0..=10.0).contains(&w)) {
             return bad("decode.centre_weight", format!("{w} is not in [0, 10]"));
         }
+        let slack = self.decode.wide_slack_m;
+        if !(slack.is_finite() && (0.0..=0.1).contains(&slack)) {
+            return bad("decode.wide_slack_m", format!("{slack} is not in [0, 0.1]"));
+        }
         if !(1..=64).contains(&self.decode.peaks_per_view) {
             return bad(
                 "decode.peaks_per_view",
@@ -543,6 +552,7 @@ impl Settings {
             .then(mvgrasp_core::CreaseConfig::default);
         config.decode.centre_weight = self.decode.centre_weight;
         config.decode.peaks_per_view = self.decode.peaks_per_view;
+        config.decode.wide_slack_m = self.decode.wide_slack_m;
         config.views = self.views.parse()?;
         Ok(config)
     }
@@ -661,7 +671,7 @@ mod tests {
         assert_eq!(defaults.cluster, mvgrasp_core::ClusterConfig::default());
         assert_eq!(defaults.decode, mvgrasp_core::DecodeConfig::default());
         let s = Settings::from_toml(
-            "[segment]\ntolerance_m = 0.02\ncrease_split = true\n[decode]\ncentre_weight = 0.5\npeaks_per_view = 8\n",
+            "[segment]\ntolerance_m = 0.02\ncrease_split = true\n[decode]\ncentre_weight = 0.5\npeaks_per_view = 8\nwide_slack_m = 0.03\n",
         )
         .unwrap();
         let config = s.planner_config().unwrap();
@@ -669,6 +679,18 @@ mod tests {
         assert_eq!(config.cluster.crease, Some(mvgrasp_core::CreaseConfig::default()));
         assert_eq!(config.decode.centre_weight, 0.5);
         assert_eq!(config.decode.peaks_per_view, 8);
+        assert_eq!(config.decode.wide_slack_m, 0.03);
+        for slack in [-0.01, 0.2, f64::NAN] {
+            let mut s = Settings::default();
+            s.decode.wide_slack_m = slack;
+            assert!(
+                s.validate()
+                    .unwrap_err()
+                    .to_string()
+                    .contains("decode.wide_slack_m"),
+                "{slack}"
+            );
+        }
         let mut s = Settings::default();
         s.decode.centre_weight = f32::NAN;
         assert!(

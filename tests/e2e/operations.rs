@@ -56,7 +56,7 @@ async fn health_reflection_and_metrics() {
     assert!(names.contains(&"grpc.health.v1.Health".to_owned()), "{names:?}");
 
     let mut inferred_views = 0;
-    let mut refused = [0u32; 5];
+    let mut refused = [0u32; 7];
     let mut out_of_reach = 0;
     for call in 0..3 {
         let mut request = frame();
@@ -84,6 +84,8 @@ async fn health_reflection_and_metrics() {
                 r.own_points,
                 r.outside_approach_cone,
                 r.out_of_reach,
+                r.too_wide,
+                r.no_pose,
             ]) {
                 *sum += n;
             }
@@ -135,6 +137,8 @@ async fn health_reflection_and_metrics() {
         "own_points",
         "outside_approach_cone",
         "out_of_reach",
+        "too_wide",
+        "no_pose",
     ]
     .iter()
     .zip(refused)

@@ -6,8 +6,10 @@
 //! The fingertips are placed `insertion_m` past the nearest surface found
 //! within `surface_radius_m` of the pixel (the paper's Delta = 5 mm), less if
 //! the pads would otherwise come closer than `table_clearance_m` to the
-//! table; a grasp whose pads cannot clear the table at all is dropped, and so
-//! is one wider than the gripper opens.
+//! table. A peak that gives no grasp is counted by cause ([`Decoded`]): its
+//! predicted opening wider than the gripper's stroke (plus `wide_slack_m`),
+//! or no pose (no seen surface near it, pads that cannot clear the table, a
+//! width or angle that is not a number).
 //!
 //! Grasp frame (DESIGN.md): origin midway between the fingertips, +z the
 //! approach, +x the closing direction, +y = z x x.
@@ -48,6 +50,12 @@ pub struct DecodeConfig {
     /// centre is its best guess, and a grip far from it lets a heavy end
     /// turn out of the pads. 0: by quality alone.
     pub centre_weight: f32,
+    /// A peak whose predicted opening exceeds the gripper's stroke by up to
+    /// this much (m) is decoded at the full stroke, and the hand check
+    /// judges it against the object's seen points; a wider one is counted
+    /// `too_wide`. 0: the network's width alone refuses it
+    /// (docs/experiments/2026-11-30-wider-than-the-stroke.md).
+    pub wide_slack_m: f64,
 }
 
 impl Default for DecodeConfig {
@@ -61,8 +69,22 @@ impl Default for DecodeConfig {
             table_clearance_m: 0.003,
             opening_margin_m: 0.02,
             centre_weight: 0.0,
+            wide_slack_m: 0.03,
         }
     }
+}
+
+/// One view's candidate grasps, best first, and its peaks that gave none, by cause.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Decoded {
+    /// The candidates.
+    pub grasps: Vec<Grasp>,
+    /// Peaks whose predicted opening exceeds the stroke by more than `wide_slack_m`.
+    pub too_wide: usize,
+    /// Peaks that give no pose: no seen surface within `surface_radius_m`,
+    /// pads that cannot clear the table at any insertion, or a width or
+    /// angle that is not a positive number.
+    pub no_pose: usize,
 }
 
 /// How far gravity acting at `centre` pulls about the grasp's closing line
@@ -160,7 +182,8 @@ pub struct ViewPlacement<'a> {
     pub object_id: u32,
 }
 
-/// Grasps of one view from view `index` of `maps`, best first.
+/// Grasps of one view from view `index` of `maps`, best first, and what its
+/// other peaks were lost to.
 #[allow(clippy::too_many_arguments)]
 pub fn decode_view(
     placement: &ViewPlacement<'_>,
@@ -171,7 +194,7 @@ pub fn decode_view(
     table: &TablePlane,
     min_quality: f32,
     config: &DecodeConfig,
-) -> Vec<Grasp> {
+) -> Decoded {
     let view = placement.view;
     let l = view.size_px;
     let channel = |c: Channel| maps.channel(index, contract.channel_index(c));
@@ -180,7 +203,7 @@ pub fn decode_view(
         channel(Channel::Sin2Phi),
         channel(Channel::Width),
     );
-    let mut grasps = Vec::new();
+    let mut out = Decoded::default();
     let peaks = smoothed_peaks(
         channel(Channel::Quality),
         l,
@@ -193,18 +216,21 @@ pub fn decode_view(
         let i = v * l + u;
         let (c, s) = (cos2[i], sin2[i]);
         let predicted_m = f64::from(width[i]) * f64::from(contract.width_scale_m);
-        if !(c.is_finite() && s.is_finite() && predicted_m.is_finite())
-            || predicted_m <= 0.0
-            || predicted_m > gripper.max_width_m
-        {
+        if !(c.is_finite() && s.is_finite() && predicted_m.is_finite()) || predicted_m <= 0.0 {
+            out.no_pose += 1;
+            continue;
+        }
+        if predicted_m > gripper.max_width_m + config.wide_slack_m {
+            out.too_wide += 1;
             continue;
         }
         let width_m = (predicted_m + config.opening_margin_m).min(gripper.max_width_m);
         let phi = 0.5 * f64::from(s).atan2(f64::from(c));
         let Some(world_from_grasp) = grasp_at(placement, u, v, phi, width_m, gripper, table, config) else {
+            out.no_pose += 1;
             continue;
         };
-        grasps.push(Grasp {
+        out.grasps.push(Grasp {
             world_from_grasp,
             width_m,
             quality: q,
@@ -215,7 +241,7 @@ pub fn decode_view(
             repairs: Repairs::default(),
         });
     }
-    grasps
+    out
 }
 
 /// The 6-DoF grasp that view pixel `(u, v)`, image angle `phi_rad` and

@@ -10,7 +10,7 @@ mod repair;
 mod test_support;
 
 pub use collision::{Collision, Obstacle, hand_collides, hand_collision, hand_out_of_view};
-pub use grasp::{DecodeConfig, Grasp, Repairs, ViewPlacement, decode_view, grasp_at, lever_arm_m};
+pub use grasp::{DecodeConfig, Decoded, Grasp, Repairs, ViewPlacement, decode_view, grasp_at, lever_arm_m};
 pub use hand::HandConfig;
 pub use peaks::{NEGLIGIBLE_QUALITY, find_peaks, smooth, smoothed_peaks};
 pub use rank::{RankConfig, Ranked, Verdict, rank_grasps, rank_grasps_scored, rank_grasps_vetted};

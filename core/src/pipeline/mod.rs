@@ -231,6 +231,7 @@ impl Planner {
         };
         Ok(Prepared {
             covered: vec![false; objects.len()],
+            undecoded: vec![ObjectRefusals::default(); objects.len()],
             objects,
             table,
             view,
@@ -255,7 +256,7 @@ impl Planner {
             // Whether an object has a grasp that passes depends on its own
             // views alone, and earlier rounds' views are already counted:
             // only this round's views are decoded to update the cover.
-            let fresh = self.decode_round(&prepared, &maps);
+            let fresh = self.decode_round(&mut prepared, &maps);
             let newly = self.objects_with_grasps(&prepared, fresh.clone());
             for (covered, newly) in prepared.covered.iter_mut().zip(newly) {
                 *covered |= newly;
@@ -310,8 +311,8 @@ impl Planner {
 
     /// The candidate grasps of the current round's views (`prepared.inferred`,
     /// the rows of `maps`), in batch order, before the approach cone and the
-    /// hand check.
-    fn decode_round(&self, prepared: &Prepared, maps: &GraspMaps) -> Vec<Grasp> {
+    /// hand check; the peaks that gave none are counted in `prepared.undecoded`.
+    fn decode_round(&self, prepared: &mut Prepared, maps: &GraspMaps) -> Vec<Grasp> {
         let options = &prepared.options;
         let mut grasps = Vec::new();
         for (batch_index, &(object, view)) in prepared.inferred.iter().enumerate() {
@@ -321,7 +322,7 @@ impl Planner {
                 world_from_object: &o.object.frame.world_from_object,
                 object_id: o.object.id,
             };
-            grasps.extend(decode_view(
+            let decoded = decode_view(
                 &placement,
                 maps,
                 batch_index,
@@ -330,7 +331,11 @@ impl Planner {
                 &prepared.table,
                 options.min_quality,
                 &self.config.decode,
-            ));
+            );
+            grasps.extend(decoded.grasps);
+            let lost = &mut prepared.undecoded[object];
+            lost.too_wide += decoded.too_wide;
+            lost.no_pose += decoded.no_pose;
         }
         grasps
     }
@@ -419,7 +424,7 @@ impl Planner {
     pub fn finish(&self, mut prepared: Prepared, maps: &GraspMaps) -> Result<Plan> {
         maps.check_matches(&prepared.batch)?;
         let start = Instant::now();
-        let fresh = self.decode_round(&prepared, maps);
+        let fresh = self.decode_round(&mut prepared, maps);
         prepared.decoded.extend(fresh);
         self.rank_decoded(prepared, maps, start)
     }
@@ -452,6 +457,7 @@ impl Planner {
             table,
             options,
             mut timings,
+            undecoded,
             ..
         } = prepared;
         let count = |why: RankedLast| ranked.deferred.iter().filter(|&&d| d == why).count();
@@ -487,8 +493,15 @@ impl Planner {
             turned_square,
             objects: objects
                 .into_iter()
-                .zip(per_object)
-                .map(|(o, refused)| DetectedObject { refused, ..o.object })
+                .zip(per_object.into_iter().zip(undecoded))
+                .map(|(o, (refused, lost))| DetectedObject {
+                    refused: ObjectRefusals {
+                        too_wide: lost.too_wide,
+                        no_pose: lost.no_pose,
+                        ..refused
+                    },
+                    ..o.object
+                })
                 .collect(),
             table,
             timings,

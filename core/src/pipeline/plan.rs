@@ -64,9 +64,9 @@ pub struct DetectedObject {
     pub frame: ObjectFrame,
     /// Its views.
     pub views: Vec<ViewReport>,
-    /// Its candidate grasps lost to the hand check, the approach cone or
-    /// the arm's reach, by cause (among those checked: ranking stops checking once the
-    /// answer is full). An object without a grasp says why here.
+    /// Its candidate grasps lost to decoding, the hand check, the approach
+    /// cone or the arm's reach, by cause (among those checked: ranking stops
+    /// checking once the answer is full). An object without a grasp says why here.
     pub refused: ObjectRefusals,
 }
 
@@ -83,26 +83,37 @@ pub struct ObjectRefusals {
     pub outside_approach_cone: usize,
     /// [`PlanOptions::arm_reach`](super::PlanOptions::arm_reach) did not reach the grasp.
     pub out_of_reach: usize,
+    /// The quality peak's predicted opening was wider than the gripper's
+    /// stroke (plus [`DecodeConfig::wide_slack_m`](crate::decode::DecodeConfig::wide_slack_m)).
+    pub too_wide: usize,
+    /// The quality peak gave no pose: no seen surface near it, pads that
+    /// cannot clear the table at any insertion, or a width or angle that is
+    /// not a number.
+    pub no_pose: usize,
 }
 
 impl ObjectRefusals {
     /// The causes' names, in the order of [`Self::counts`].
-    pub const CAUSES: [&'static str; 5] = [
+    pub const CAUSES: [&'static str; 7] = [
         "table",
         "neighbour",
         "own_points",
         "outside_approach_cone",
         "out_of_reach",
+        "too_wide",
+        "no_pose",
     ];
 
     /// The count of each of [`Self::CAUSES`].
-    pub fn counts(&self) -> [usize; 5] {
+    pub fn counts(&self) -> [usize; 7] {
         [
             self.table,
             self.neighbour,
             self.own_points,
             self.outside_approach_cone,
             self.out_of_reach,
+            self.too_wide,
+            self.no_pose,
         ]
     }
 }

@@ -131,7 +131,8 @@ fn known_peak_lands_at_known_pose_in_every_view() {
                     &table,
                     0.5,
                     &config,
-                );
+                )
+                .grasps;
                 let Some(g) = grasps.first() else {
                     panic!("{axis:?} phi {phi}: no grasp")
                 };
@@ -173,7 +174,8 @@ fn known_peak_lands_at_known_pose_in_every_view() {
                             &table,
                             0.5,
                             &wider,
-                        );
+                        )
+                        .grasps;
                         assert_eq!(grasps.len(), 1, "{axis:?} margin {margin}");
                         assert!(
                             (grasps[0].width_m - width).abs() < 1e-9,
@@ -188,9 +190,11 @@ fn known_peak_lands_at_known_pose_in_every_view() {
 }
 
 /// A side grasp closing vertically whose lower pad would sit in the table is
-/// dropped; the same grasp narrow enough to clear it is kept.
+/// dropped and counted; the same grasp narrow enough to clear it is kept; a
+/// peak wider than the stroke is counted too wide, or decoded at the stroke
+/// within `wide_slack_m`.
 #[test]
-fn grasps_into_the_table_are_dropped() {
+fn grasps_into_the_table_or_too_wide_are_dropped_and_counted() {
     let contract = ModelContract::baseline();
     let points = box_points();
     let indices: Vec<u32> = (0..points.len() as u32).collect();
@@ -211,6 +215,7 @@ fn grasps_into_the_table_are_dropped() {
     let config = DecodeConfig {
         smoothing_sigma_px: 0.0,
         opening_margin_m: 0.0,
+        wide_slack_m: 0.0,
         ..DecodeConfig::default()
     };
     let placement = ViewPlacement {
@@ -221,48 +226,47 @@ fn grasps_into_the_table_are_dropped() {
     let centre = contract.input_size_px / 2;
     let vertical = std::f32::consts::FRAC_PI_2;
     // Face centre 4 cm above the table: a 10 cm opening puts the lower pad 1 cm under it.
-    let wide = maps_with_peak(&contract, centre, centre, vertical, 0.10);
-    assert!(
+    let decode = |maps: &_, config: &DecodeConfig| {
         decode_view(
             &placement,
-            &wide,
+            maps,
             0,
             &contract,
             &Gripper::default(),
             &table,
             0.5,
-            &config
+            config,
         )
-        .is_empty()
+    };
+    let wide = decode(
+        &maps_with_peak(&contract, centre, centre, vertical, 0.10),
+        &config,
     );
-    let narrow = maps_with_peak(&contract, centre, centre, vertical, 0.06);
+    assert!(wide.grasps.is_empty());
     assert_eq!(
-        decode_view(
-            &placement,
-            &narrow,
-            0,
-            &contract,
-            &Gripper::default(),
-            &table,
-            0.5,
-            &config
-        )
-        .len(),
-        1
+        (wide.no_pose, wide.too_wide),
+        (1, 0),
+        "counted: no pose clears the table"
     );
-    // Wider than the gripper opens: dropped.
-    let too_wide = maps_with_peak(&contract, centre, centre, 0.0, 0.15);
-    assert!(
-        decode_view(
-            &placement,
-            &too_wide,
-            0,
-            &contract,
-            &Gripper::default(),
-            &table,
-            0.5,
-            &config
-        )
-        .is_empty()
+    let narrow = decode(
+        &maps_with_peak(&contract, centre, centre, vertical, 0.06),
+        &config,
     );
+    assert_eq!((narrow.grasps.len(), narrow.no_pose, narrow.too_wide), (1, 0, 0));
+    // Wider than the gripper opens: counted too wide, unless within the
+    // slack, where it is decoded at the full stroke for the hand check.
+    let stroke = Gripper::default().max_width_m;
+    let too_wide = maps_with_peak(&contract, centre, centre, 0.0, stroke as f32 + 0.01);
+    let refused = decode(&too_wide, &config);
+    assert!(refused.grasps.is_empty());
+    assert_eq!((refused.too_wide, refused.no_pose), (1, 0));
+    let slack = DecodeConfig {
+        wide_slack_m: 0.02,
+        ..config.clone()
+    };
+    let kept = decode(&too_wide, &slack);
+    assert_eq!((kept.grasps.len(), kept.too_wide), (1, 0));
+    assert!((kept.grasps[0].width_m - stroke).abs() < 1e-9);
+    let beyond = maps_with_peak(&contract, centre, centre, 0.0, stroke as f32 + 0.03);
+    assert_eq!(decode(&beyond, &slack).too_wide, 1);
 }

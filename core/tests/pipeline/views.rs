@@ -1,20 +1,33 @@
 //! Which views an object is planned from: the view cascade, the
 //! approach cone and the arm's reach.
 
-use mvgrasp_core::{GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig, ViewPolicy, approach_of};
+use mvgrasp_core::{
+    Channel, GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig, ViewPolicy, approach_of,
+};
 use nalgebra::Vector3;
 
 use crate::scene::{self, Camera, Scene, grid_scene};
 use crate::{plan_rendered, table_workspace};
 
-/// A network that answers nothing on its first call, then as the analytic
-/// baseline: what a chosen view without a usable grasp looks like.
-struct SilentFirst {
+/// The analytic baseline with its maps edited after each call: `edit`
+/// gets the call's number (1-based), the contract and the maps.
+struct EditedNet<F> {
     net: MomentsNet,
     calls: usize,
+    edit: F,
 }
 
-impl GraspNet for SilentFirst {
+impl<F: FnMut(usize, &mvgrasp_core::ModelContract, &mut mvgrasp_core::GraspMaps)> EditedNet<F> {
+    fn new(edit: F) -> Self {
+        Self {
+            net: MomentsNet::default(),
+            calls: 0,
+            edit,
+        }
+    }
+}
+
+impl<F: FnMut(usize, &mvgrasp_core::ModelContract, &mut mvgrasp_core::GraspMaps)> GraspNet for EditedNet<F> {
     fn contract(&self) -> &mvgrasp_core::ModelContract {
         self.net.contract()
     }
@@ -22,10 +35,71 @@ impl GraspNet for SilentFirst {
     fn infer(&mut self, batch: &mvgrasp_core::ViewBatch) -> mvgrasp_core::Result<mvgrasp_core::GraspMaps> {
         self.calls += 1;
         let mut maps = self.net.infer(batch)?;
-        if self.calls == 1 {
-            maps.data.iter_mut().for_each(|v| *v = 0.0);
-        }
+        (self.edit)(self.calls, self.net.contract(), &mut maps);
         Ok(maps)
+    }
+}
+
+/// A network that answers nothing on its first call, then as the analytic
+/// baseline: what a chosen view without a usable grasp looks like.
+fn silent_first(call: usize, _: &mvgrasp_core::ModelContract, maps: &mut mvgrasp_core::GraspMaps) {
+    if call == 1 {
+        maps.data.iter_mut().for_each(|v| *v = 0.0);
+    }
+}
+
+/// Every opening predicted 16 cm wide, beyond the 14 cm stroke.
+fn openings_16_cm(_: usize, contract: &mvgrasp_core::ModelContract, maps: &mut mvgrasp_core::GraspMaps) {
+    let (channel, per_view) = (
+        contract.channel_index(Channel::Width),
+        maps.size_px * maps.size_px,
+    );
+    let scaled = 0.16 / contract.width_scale_m;
+    for view in maps.data.chunks_exact_mut(4 * per_view) {
+        view[channel * per_view..(channel + 1) * per_view].fill(scaled);
+    }
+}
+
+/// Peaks whose predicted opening is wider than the stroke are counted per
+/// object (`too_wide`) after every view was tried; within
+/// `wide_slack_m` they are decoded at the full stroke and the hand check
+/// keeps those whose pads clear the objects (16 cm apart).
+#[test]
+fn openings_wider_than_the_stroke_are_counted_or_left_to_the_hand_check() {
+    let scene = grid_scene(0.1, 5, 5, 0.16);
+    let camera = Camera::orbit(Vector3::new(0.0, 0.0, 0.1), 0.8, 50.0, -90.0);
+    let rendered = scene::render(&scene, &camera);
+    let bytes = rendered.depth_bytes();
+    let input = camera.scene_input(&bytes, table_workspace(&scene));
+    let options = PlanOptions {
+        max_grasps: 50,
+        min_quality: 0.0,
+        ..PlanOptions::default()
+    };
+    for (slack, expect_grasps) in [(0.0, false), (0.03, true)] {
+        let mut net = EditedNet::new(openings_16_cm);
+        let mut config = PlannerConfig::default();
+        config.decode.wide_slack_m = slack;
+        let planner = Planner::new(config, net.contract().clone()).expect("planner");
+        let plan = planner.plan(&input, &options, &mut net).expect("plan");
+        assert_eq!(plan.objects.len(), 5);
+        for object in &plan.objects {
+            let has_grasp = plan.grasps.iter().any(|g| g.object_id == object.id);
+            assert_eq!(has_grasp, expect_grasps, "slack {slack}: object {}", object.id);
+            if expect_grasps {
+                assert_eq!(object.refused.too_wide, 0, "object {}", object.id);
+            } else {
+                assert!(
+                    object.refused.too_wide > 0,
+                    "object {}: {:?}",
+                    object.id,
+                    object.refused
+                );
+                assert!(object.views.iter().all(|v| v.inferred), "object {}", object.id);
+            }
+        }
+        let widest = plan.grasps.iter().map(|g| g.width_m).fold(0.0, f64::max);
+        assert!(widest <= mvgrasp_core::Gripper::default().max_width_m + 1e-9);
     }
 }
 
@@ -39,10 +113,7 @@ fn the_view_cascade_tries_the_next_view() {
     let bytes = rendered.depth_bytes();
     let input = camera.scene_input(&bytes, table_workspace(&scene));
     for cascade in [true, false] {
-        let mut net = SilentFirst {
-            net: MomentsNet::default(),
-            calls: 0,
-        };
+        let mut net = EditedNet::new(silent_first);
         let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).expect("planner");
         let options = PlanOptions {
             view_policy: ViewPolicy::Entropy,
