@@ -231,7 +231,6 @@ impl Planner {
         };
         Ok(Prepared {
             covered: vec![false; objects.len()],
-            undecoded: vec![ObjectRefusals::default(); objects.len()],
             objects,
             table,
             view,
@@ -311,7 +310,8 @@ impl Planner {
 
     /// The candidate grasps of the current round's views (`prepared.inferred`,
     /// the rows of `maps`), in batch order, before the approach cone and the
-    /// hand check; the peaks that gave none are counted in `prepared.undecoded`.
+    /// hand check; the peaks that gave none are counted on their object
+    /// (`refused.too_wide`, `refused.no_pose`).
     fn decode_round(&self, prepared: &mut Prepared, maps: &GraspMaps) -> Vec<Grasp> {
         let options = &prepared.options;
         let mut grasps = Vec::new();
@@ -333,7 +333,7 @@ impl Planner {
                 &self.config.decode,
             );
             grasps.extend(decoded.grasps);
-            let lost = &mut prepared.undecoded[object];
+            let lost = &mut prepared.objects[object].object.refused;
             lost.too_wide += decoded.too_wide;
             lost.no_pose += decoded.no_pose;
         }
@@ -457,7 +457,6 @@ impl Planner {
             table,
             options,
             mut timings,
-            undecoded,
             ..
         } = prepared;
         let count = |why: RankedLast| ranked.deferred.iter().filter(|&&d| d == why).count();
@@ -493,11 +492,12 @@ impl Planner {
             turned_square,
             objects: objects
                 .into_iter()
-                .zip(per_object.into_iter().zip(undecoded))
-                .map(|(o, (refused, lost))| DetectedObject {
+                .zip(per_object)
+                .map(|(o, refused)| DetectedObject {
+                    // Decoding's counts, kept on the object round by round.
                     refused: ObjectRefusals {
-                        too_wide: lost.too_wide,
-                        no_pose: lost.no_pose,
+                        too_wide: o.object.refused.too_wide,
+                        no_pose: o.object.refused.no_pose,
                         ..refused
                     },
                     ..o.object

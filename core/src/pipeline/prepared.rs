@@ -33,8 +33,6 @@ pub struct Prepared {
     pub(super) earlier: Vec<Round>,
     /// The candidate grasps the earlier rounds' views gave, decoded once.
     pub(super) decoded: Vec<Grasp>,
-    /// Each object's peaks that gave no candidate in those rounds (`too_wide`, `no_pose`).
-    pub(super) undecoded: Vec<ObjectRefusals>,
     /// Objects with a grasp that clears the hand check in an earlier round.
     pub(super) covered: Vec<bool>,
     pub(super) options: PlanOptions,

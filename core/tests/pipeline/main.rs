@@ -31,11 +31,21 @@ pub fn plan_rendered_with(
     camera: &Camera,
     options: &PlanOptions,
 ) -> (Plan, Rendered) {
+    plan_rendered_by(config, scene, camera, options, &mut MomentsNet::default())
+}
+
+/// [`plan_rendered_with`] with `net` in place of the analytic baseline.
+pub fn plan_rendered_by(
+    config: PlannerConfig,
+    scene: &Scene,
+    camera: &Camera,
+    options: &PlanOptions,
+    net: &mut dyn GraspNet,
+) -> (Plan, Rendered) {
     let rendered = scene::render(scene, camera);
     let bytes = rendered.depth_bytes();
     let input = camera.scene_input(&bytes, table_workspace(scene));
-    let mut net = MomentsNet::default();
     let planner = Planner::new(config, net.contract().clone()).expect("planner");
-    let plan = planner.plan(&input, options, &mut net).expect("plan");
+    let plan = planner.plan(&input, options, net).expect("plan");
     (plan, rendered)
 }

@@ -1,13 +1,11 @@
 //! Which views an object is planned from: the view cascade, the
 //! approach cone and the arm's reach.
 
-use mvgrasp_core::{
-    Channel, GraspNet, MomentsNet, PlanOptions, Planner, PlannerConfig, ViewPolicy, approach_of,
-};
+use mvgrasp_core::{Channel, GraspNet, MomentsNet, PlanOptions, PlannerConfig, ViewPolicy, approach_of};
 use nalgebra::Vector3;
 
-use crate::scene::{self, Camera, Scene, grid_scene};
-use crate::{plan_rendered, table_workspace};
+use crate::scene::{Camera, Scene, grid_scene};
+use crate::{plan_rendered, plan_rendered_by};
 
 /// The analytic baseline with its maps edited after each call: `edit`
 /// gets the call's number (1-based), the contract and the maps.
@@ -68,20 +66,21 @@ fn openings_16_cm(_: usize, contract: &mvgrasp_core::ModelContract, maps: &mut m
 fn openings_wider_than_the_stroke_are_counted_or_left_to_the_hand_check() {
     let scene = grid_scene(0.1, 5, 5, 0.16);
     let camera = Camera::orbit(Vector3::new(0.0, 0.0, 0.1), 0.8, 50.0, -90.0);
-    let rendered = scene::render(&scene, &camera);
-    let bytes = rendered.depth_bytes();
-    let input = camera.scene_input(&bytes, table_workspace(&scene));
     let options = PlanOptions {
         max_grasps: 50,
         min_quality: 0.0,
         ..PlanOptions::default()
     };
     for (slack, expect_grasps) in [(0.0, false), (0.03, true)] {
-        let mut net = EditedNet::new(openings_16_cm);
         let mut config = PlannerConfig::default();
         config.decode.wide_slack_m = slack;
-        let planner = Planner::new(config, net.contract().clone()).expect("planner");
-        let plan = planner.plan(&input, &options, &mut net).expect("plan");
+        let (plan, _) = plan_rendered_by(
+            config,
+            &scene,
+            &camera,
+            &options,
+            &mut EditedNet::new(openings_16_cm),
+        );
         assert_eq!(plan.objects.len(), 5);
         for object in &plan.objects {
             let has_grasp = plan.grasps.iter().any(|g| g.object_id == object.id);
@@ -109,12 +108,8 @@ fn openings_wider_than_the_stroke_are_counted_or_left_to_the_hand_check() {
 fn the_view_cascade_tries_the_next_view() {
     let scene = grid_scene(0.1, 5, 5, 0.12);
     let camera = Camera::orbit(Vector3::new(0.0, 0.0, 0.1), 0.8, 50.0, -90.0);
-    let rendered = scene::render(&scene, &camera);
-    let bytes = rendered.depth_bytes();
-    let input = camera.scene_input(&bytes, table_workspace(&scene));
     for cascade in [true, false] {
         let mut net = EditedNet::new(silent_first);
-        let planner = Planner::new(PlannerConfig::default(), net.contract().clone()).expect("planner");
         let options = PlanOptions {
             view_policy: ViewPolicy::Entropy,
             max_grasps: 50,
@@ -122,7 +117,7 @@ fn the_view_cascade_tries_the_next_view() {
             view_cascade: cascade,
             ..PlanOptions::default()
         };
-        let plan = planner.plan(&input, &options, &mut net).expect("plan");
+        let (plan, _) = plan_rendered_by(PlannerConfig::default(), &scene, &camera, &options, &mut net);
         assert_eq!(plan.objects.len(), 5);
         if cascade {
             assert!(net.calls >= 2, "a second round was inferred");
