@@ -45,8 +45,8 @@ def parse(argv):
                    help="the robot-bridge opens the fingers this much wider than a grasp's width "
                         "(its pick.approach_clearance_m; default: the bridge's own)")
     p.add_argument("--close-speed-m-s", type=float, default=None, metavar="V",
-                   help="how fast the pads close (m/s of the gap; default 0.14, the robot-bridge's speed "
-                        "register on the 2F-140; 0: the servo slams them shut, as before 2026-11-29)")
+                   help="how fast the pads close and open (m/s of the gap; default 0.14, the robot-bridge's "
+                        "speed register on the 2F-140; 0: the servo slams them, as before 2026-11-29)")
     p.add_argument("--rigid-tcp", action="store_true",
                    help="configure the robot-bridge without the 2F-140's fingertip travel (the ablation)")
     p.add_argument("--oracle", action="store_true",
@@ -186,7 +186,7 @@ def main(argv=None):
             "resolution": args.resolution, "noise": args.noise,
             "oracle": args.oracle, "bin_fill_m": args.bin_fill_m,
             "approach_clearance_m": args.approach_clearance_m, "close_speed_m_s": args.close_speed_m_s,
-            "workers": args.workers,
+            "pads_open_at_speed": True, "workers": args.workers,
             "wall_s": time.perf_counter() - start,
             "command": "scripts/referee.sh " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))}
     table = report.write(args.out, meta, episodes)

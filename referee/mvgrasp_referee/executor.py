@@ -114,7 +114,20 @@ class Run:
         return self.step(int(SETTLE_S / cellmod.TIMESTEP_S / 2))
 
     def open_to(self, width_m, table):
-        gripper.set_command(self.cell, gripper.command_for_width(table, min(width_m, 0.14)))
+        """Moves the pads to `width_m` at `close_speed_m_s` (the 2F-140 moves
+        both ways at the one speed the bridge sends: the command ramps along
+        the gap table from the current gap), then lets them settle. Without
+        the ramp a release slams the pads open at about 3 m/s and throws
+        what they held."""
+        width_m = min(width_m, 0.14)
+        if self.close_speed_m_s > 0:
+            gap = gripper.pad_gap(self.cell)
+            steps = int(abs(width_m - gap) / self.close_speed_m_s / cellmod.TIMESTEP_S)
+            for k in range(1, steps + 1):
+                gripper.set_command(self.cell, gripper.command_for_width(table, gap + (width_m - gap) * k / steps))
+                if not self.step():
+                    return False
+        gripper.set_command(self.cell, gripper.command_for_width(table, width_m))
         return self.step(int(0.6 / cellmod.TIMESTEP_S))
 
     def close(self, table):
@@ -175,7 +188,7 @@ def held_objects(cell):
 
 def execute(cell, plan_steps, target, gap_table, close_speed_m_s=CLOSE_SPEED_M_S):
     """Runs the bridge's steps for a grasp of object `target` (index or None),
-    the pads closing at `close_speed_m_s`, and returns (outcome, details)."""
+    the pads moving at `close_speed_m_s`, and returns (outcome, details)."""
     run = Run(cell, target, close_speed_m_s=close_speed_m_s)
     start_z = {i: cell.object_pose(i)[0][2] for i in range(len(cell.bodies))}
     closed = False

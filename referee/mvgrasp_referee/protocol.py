@@ -105,7 +105,7 @@ def target_of(cell, grasp, remaining):
 
 def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, resolution="640x480", noise=False,
                 snapshots=None, recorder=None, alternatives=0, close_speed_m_s=executor.CLOSE_SPEED_M_S):
-    """One episode, the pads closing at `close_speed_m_s`; returns its
+    """One episode, the pads moving at `close_speed_m_s`; returns its
     record (attempts and counts). With a
     `recorder` (attempt_views.Recorder), each tried grasp's view and outcome
     are recorded, and after each attempt up to `alternatives` grasps ranked

@@ -81,7 +81,8 @@ def _cell_settings(meta):
     parts = []
     if meta.get("close_speed_m_s") is not None:
         speed = meta["close_speed_m_s"]
-        parts.append(f"pads closing at {speed} m/s" if speed > 0 else "pads slammed shut (no ramp)")
+        moving = "closing and opening" if meta.get("pads_open_at_speed") else "closing"
+        parts.append(f"pads {moving} at {speed} m/s" if speed > 0 else "pads slammed (no ramp)")
     if meta.get("approach_clearance_m") is not None:
         parts.append(f"fingers opened {meta['approach_clearance_m']} m wider than the grasp")
     if meta.get("bin_fill_m") is not None:
