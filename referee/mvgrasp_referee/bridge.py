@@ -36,11 +36,14 @@ def matrix_xyzw(quaternion):
     return m.reshape(3, 3)
 
 
-def config_toml(tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_M, approach_clearance_m=None):
+def config_toml(tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_M, approach_clearance_m=None,
+                failed_radius_m=None):
     """The bridge's settings for this cell (robot-bridge/bridge.toml's keys);
     `fingertip_travel` as `gripper.fingertip_travel` gives it (empty: a rigid
     TCP); the basket reaches `bin_fill_m` high; the fingers open
-    `approach_clearance_m` wider than a grasp (None: the bridge's default)."""
+    `approach_clearance_m` wider than a grasp; a grasp within
+    `failed_radius_m` of a pick that came up empty is tried last (None: the
+    bridge's defaults)."""
     position, yaw = cellmod.WORLD_FROM_BASE
     base_q = [0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)]
     # Fingers close along the flange's y: the TCP's x (closing) is the flange's y.
@@ -48,6 +51,8 @@ def config_toml(tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_
     (bx, by, bz), (hx, hy, hz) = cellmod.bin_box(bin_fill_m)
     fmt = ", ".join
     clearance = "" if approach_clearance_m is None else f"approach_clearance_m = {approach_clearance_m:.4f}\n"
+    if failed_radius_m is not None:
+        clearance += f"failed_radius_m = {failed_radius_m:.4f}\n"
     return f"""[robot]
 world_from_base = {{ position = [{fmt(f"{v:.6f}" for v in position)}], orientation = [{fmt(f"{v:.9f}" for v in base_q)}] }}
 flange_from_tcp = {{ position = [{fmt(f"{v:.6f}" for v in tcp_in_flange)}], orientation = [{fmt(f"{v:.9f}" for v in tcp_q)}] }}
@@ -63,11 +68,12 @@ class Bridge:
     """A running `robot-bridge plan-jsonl` process."""
 
     def __init__(self, binary, tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_M,
-                 approach_clearance_m=None):
+                 approach_clearance_m=None, failed_radius_m=None):
         if not os.path.exists(binary):
             raise FileNotFoundError(f"{binary}: build it with `cargo build --release -p mvgrasp-robot-bridge`")
         self._config = tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False)
-        self._config.write(config_toml(tcp_in_flange, fingertip_travel, bin_fill_m, approach_clearance_m))
+        self._config.write(config_toml(tcp_in_flange, fingertip_travel, bin_fill_m, approach_clearance_m,
+                                       failed_radius_m))
         self._config.close()
         self.process = subprocess.Popen([binary, "plan-jsonl", "--config", self._config.name],
                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
@@ -105,6 +111,18 @@ class Bridge:
         if not answer["ok"]:
             raise RuntimeError(answer["error"])
         return answer
+
+    def order(self, grasps, failed):
+        """The order to try ranked `grasps` in once the picks at the `failed`
+        grasps (dicts with position, orientation xyzw) came up empty: the
+        bridge's own (`order` in robot-bridge/src/jsonl.rs)."""
+        if not failed:
+            return list(range(len(grasps)))
+        pose = lambda g: {"position": list(g["position"]), "orientation": list(g["orientation"])}  # noqa: E731
+        answer = self.ask({"order": {"grasps": [pose(g) for g in grasps], "failed": [pose(g) for g in failed]}})
+        if not answer["ok"]:
+            raise RuntimeError(answer["error"])
+        return answer["order"]
 
     def close(self):
         if self.process.poll() is None:

@@ -202,7 +202,7 @@ def execute(cell, plan_steps, target, gap_table, close_speed_m_s=CLOSE_SPEED_M_S
                 run.phase = "release"
                 held = held_objects(cell)
                 if picked is None or picked not in held:
-                    return "dropped-carry", _details(run, picked)
+                    return "dropped-carry", _details(run, picked, empty_handed=True)
                 run.open_to(0.14, gap_table)
                 run.step(int(0.8 / cellmod.TIMESTEP_S))
                 break
@@ -215,7 +215,7 @@ def execute(cell, plan_steps, target, gap_table, close_speed_m_s=CLOSE_SPEED_M_S
                 return "timeout", _details(run, picked)
             closed = True
             if gripper.pad_gap(cell) < 0.002:
-                return ("collision" if run.collisions else "empty"), _details(run, picked)
+                return ("collision" if run.collisions else "empty"), _details(run, picked, empty_handed=True)
         elif kind == "movej":
             if not closed:
                 run.phase = "pre-grasp"
@@ -235,12 +235,12 @@ def execute(cell, plan_steps, target, gap_table, close_speed_m_s=CLOSE_SPEED_M_S
                 raised = [i for i in held if cell.object_pose(i)[0][2] > start_z[i] + HELD_LIFT_M]
                 if not raised:
                     cause = "collision" if run.collisions else ("empty" if not held else "slip-lift")
-                    return cause, _details(run, picked)
+                    return cause, _details(run, picked, empty_handed=True)
                 picked = target if target in raised else raised[0]
                 run.phase = "shake"
                 run.shake()
                 if picked not in held_objects(cell):
-                    return "slip-shake", _details(run, picked)
+                    return "slip-shake", _details(run, picked, empty_handed=True)
     if not lifted:
         return "timeout", _details(run, picked)
     park(cell)
@@ -277,6 +277,13 @@ def park(cell):
         mujoco.mj_step(cell.model, cell.data)
 
 
-def _details(run, picked):
-    return {"picked": picked, "collisions": sorted({f"{p}: {a} ~ {b}" for p, a, b in run.collisions})[:6],
-            "sim_s": round(run.d.time, 3)}
+def _details(run, picked, empty_handed=False):
+    """What an attempt leaves besides its outcome; `empty_handed`: the hand
+    would hold nothing over the bin (closed on nothing, or the object was
+    left or lost on the way), which the robot-bridge's gripper reports too
+    (`NoObject`, `Lost`): not said of a release that lands outside the bin."""
+    details = {"picked": picked, "collisions": sorted({f"{p}: {a} ~ {b}" for p, a, b in run.collisions})[:6],
+               "sim_s": round(run.d.time, 3)}
+    if empty_handed:
+        details["empty_handed"] = True
+    return details

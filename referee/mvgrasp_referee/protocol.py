@@ -127,6 +127,9 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
               "objects": [s.name for s in specs], "initial": len(initial), "attempts": [], "end": None,
               "camera_pose": pose.world_from_camera.round(4).tolist(), "camera_redrawn": redrawn}
     removed, failures = set(), 0
+    # Grasps that left the hand empty (the gripper tells): the bridge tries
+    # grasps that repeat one of them last (`order`), as `pick --failed-picks` does.
+    empty_handed = []
     try:
         for attempt in range(2 * len(specs) + 4):
             remaining = [i for i in initial if i not in removed and scenes.on_table(cell, i)]
@@ -159,6 +162,8 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                 break
             obstacles = bridge_scene(plan)
             grasps = plan["grasps"][:MAX_GRASPS_TRIED]
+            rank = bridge.order(grasps, empty_handed)  # the planner's rank of each, in the order tried
+            grasps = [grasps[k] for k in rank]
             index_of = {o["id"]: k for k, o in enumerate(plan["objects"])}
 
             def ask(start):
@@ -189,17 +194,17 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                     start = chosen + 1
                     outcome = None
                     continue
-                entry.update({"grasp_rank": chosen, "quality": round(grasp["quality"], 4),
+                entry.update({"grasp_rank": rank[chosen], "quality": round(grasp["quality"], 4),
                               "width_m": round(grasp["width_m"], 4), "view": grasp["view"],
                               "grasp": {"position": [round(v, 4) for v in grasp["position"]],
                                         "orientation": [round(v, 5) for v in grasp["orientation"]]},
                               "target": name_of(target), **details})
                 entry.update(grasp_on_object(grasp, plan["objects"]))
                 if recorder is not None:
-                    recorder.add(plan, grasp, chosen, outcome, attempt, False, name_of(target))
+                    recorder.add(plan, grasp, rank[chosen], outcome, attempt, False, name_of(target))
                     if alternatives > 0:
                         _try_alternatives(cell, before, ask, grasps, chosen + 1, alternatives, remaining, table,
-                                          lambda k, o, t: recorder.add(plan, grasps[k], k, o, attempt, True,
+                                          lambda k, o, t: recorder.add(plan, grasps[k], rank[k], o, attempt, True,
                                                                        name_of(t)), close_speed_m_s)
                 break
             if outcome is None:
@@ -213,6 +218,8 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                 entry["snapshot"] = snapshots(cell, pose, depth, entry, record)
             if outcome != "success":
                 executor.park(cell)
+            if details.get("empty_handed"):
+                empty_handed.append(grasp)
             if outcome == "success":
                 removed.add(details["picked"])
                 failures = 0

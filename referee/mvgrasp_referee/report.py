@@ -87,6 +87,11 @@ def _cell_settings(meta):
         parts.append(f"fingers opened {meta['approach_clearance_m']} m wider than the grasp")
     if meta.get("bin_fill_m") is not None:
         parts.append(f"the bridge's basket {meta['bin_fill_m']} m high")
+    if "failed_tried_last" in meta:
+        radius = meta.get("failed_radius_m")
+        within = "the bridge's radius" if radius is None else f"{radius} m"
+        parts.append(f"grasps within {within} of an empty-handed pick tried last"
+                     if meta["failed_tried_last"] else "grasps in the planner's rank after an empty-handed pick")
     return "; " + ", ".join(parts) if parts else ""
 
 

@@ -402,6 +402,38 @@ class OracleTest(unittest.TestCase):
         self.assertEqual(first, second)
 
 
+class FailedPicksTest(unittest.TestCase):
+    def test_a_pick_that_closed_on_nothing_is_tried_last_the_next_time(self):
+        """A planner that ranks a grasp over bare table first: the pads close
+        on nothing; the next attempt's ranking is the same, and the bridge
+        tries the oracle's grasp first (`order`), which clears the episode.
+        With `failed_radius_m = 0` the bridge repeats the empty pick until
+        the episode gives up."""
+
+        class AirFirst(planner.OraclePlanner):
+            def plan_truth(self, cell, remaining):
+                plan = super().plan_truth(cell, remaining)
+                air = dict(plan["grasps"][0])
+                x, y, _ = air["position"]
+                air["position"] = [x, y - 0.15 if y > 0 else y + 0.15, 0.03]  # 15 cm beside it, over bare table
+                plan["grasps"] = [air] + plan["grasps"]
+                return plan
+
+        outcomes = {}
+        for radius in (None, 0.0):
+            c = cell.build([], [])
+            b = bridge.Bridge(bridge_binary(), gripper.tcp_in_flange(c), failed_radius_m=radius)
+            try:
+                record = protocol.run_episode(AirFirst(), b, "isolated", "train", "topdown", 2026, 0)
+            finally:
+                b.close()
+            outcomes[radius] = [a["outcome"] for a in record["attempts"]]
+            self.assertTrue(record["attempts"][0].get("empty_handed"), record["attempts"][0])
+            self.assertEqual(record["attempts"][0]["grasp_rank"], 0)
+        self.assertEqual(outcomes[None], ["empty", "success"], outcomes)
+        self.assertEqual(outcomes[0.0], ["empty"] * 3, outcomes)
+
+
 class PlannerErrorTest(unittest.TestCase):
     def test_a_refused_frame_ends_the_episode_with_the_planners_reason(self):
         class Refusing:

@@ -103,6 +103,11 @@ pub struct PickSection {
     /// objects on the approach and the lift too
     /// (`PickConfig::check_palm_near_grasp`).
     pub check_palm_near_grasp: bool,
+    /// A grasp this near (m) a pick that came up empty is tried last
+    /// (`PickConfig::failed_radius_m`; 0: never).
+    pub failed_radius_m: f64,
+    /// See `failed_radius_m` (degrees, 0-90).
+    pub failed_angle_deg: f64,
 }
 
 /// Where grasps come from.
@@ -212,6 +217,8 @@ impl Default for BridgeConfig {
                 max_grasps: 10,
                 check_fingers_near_grasp: pick.check_fingers_near_grasp,
                 check_palm_near_grasp: pick.check_palm_near_grasp,
+                failed_radius_m: pick.failed_radius_m,
+                failed_angle_deg: pick.failed_angle_deg,
             },
             planner: PlannerSection {
                 endpoint: None,
@@ -306,6 +313,8 @@ impl BridgeConfig {
             ("pick.approach_clearance_m", self.pick.approach_clearance_m, 0.1),
             ("pick.max_lift_tilt_deg", self.pick.max_lift_tilt_deg, 60.0),
             ("pick.pregrasp_extra_m", self.pick.pregrasp_extra_m, 0.5),
+            ("pick.failed_radius_m", self.pick.failed_radius_m, 0.1),
+            ("pick.failed_angle_deg", self.pick.failed_angle_deg, 90.0),
             ("recovery.unlock_after_s", self.recovery.unlock_after_s, 60.0),
             ("planner.min_quality", f64::from(self.planner.min_quality), 1.0),
         ] {
@@ -351,6 +360,8 @@ impl BridgeConfig {
             obstacles: vec![self.basket()],
             check_fingers_near_grasp: self.pick.check_fingers_near_grasp,
             check_palm_near_grasp: self.pick.check_palm_near_grasp,
+            failed_radius_m: self.pick.failed_radius_m,
+            failed_angle_deg: self.pick.failed_angle_deg,
             ..PickConfig::default()
         })
     }
@@ -453,6 +464,8 @@ mod tests {
             ("[pick]\nmax_lift_tilt_deg = 75.0\n", "pick.max_lift_tilt_deg"),
             ("[pick]\npregrasp_extra_m = 0.6\n", "pick.pregrasp_extra_m"),
             ("[pick]\npregrasp_extra_m = -0.05\n", "pick.pregrasp_extra_m"),
+            ("[pick]\nfailed_radius_m = -0.01\n", "pick.failed_radius_m"),
+            ("[pick]\nfailed_angle_deg = 120.0\n", "pick.failed_angle_deg"),
             (
                 "[pick]\napproach_clearance_m = -0.01\n",
                 "pick.approach_clearance_m",

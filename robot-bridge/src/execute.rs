@@ -42,6 +42,18 @@ pub enum PickOutcome {
     },
     /// The gripper closed on nothing; the arm stopped at the grasp.
     NoObject,
+    /// The gripper held the object when it closed and nothing when it was
+    /// to let go over the basket (it slipped out on the lift or the carry);
+    /// the arm stopped over the basket.
+    Lost,
+}
+
+impl PickOutcome {
+    /// Whether the pick came up empty-handed: a grasp at the same spot on
+    /// an unchanged scene is worth trying last (`PickConfig::order_after_failures`).
+    pub fn empty_handed(&self) -> bool {
+        matches!(self, Self::NoObject | Self::Lost)
+    }
 }
 
 /// Gripper speed and force registers used for picks (0..=255).
@@ -66,18 +78,32 @@ pub fn execute_pick(
     }
     let mut chunk: Vec<Step> = Vec::new();
     let mut held_width_m = 0.0;
+    let mut closed_on_object = false;
     for step in &plan.steps {
         match step {
             Step::MoveJ { .. } | Step::MoveL { .. } => chunk.push(step.clone()),
             Step::Gripper { name, close, width_m } => {
                 run_chunk(controller, &mut chunk, plan.grasp_index, config)?;
+                // Before letting go: is the object still there?
+                if closed_on_object
+                    && !*close
+                    && !controller
+                        .gripper
+                        .holding()
+                        .map_err(|e| Error::Controller(format!("gripper ({name}): {e}; the arm is still")))?
+                {
+                    return Ok(PickOutcome::Lost);
+                }
                 let target = if *close { 0.0 } else { *width_m };
                 let (outcome, measured) = controller
                     .gripper
                     .move_to(target, GRIP_SPEED, GRIP_FORCE)
                     .map_err(|e| Error::Controller(format!("gripper ({name}): {e}; the arm is still")))?;
                 match (close, outcome) {
-                    (true, GripOutcome::Holding) => held_width_m = measured,
+                    (true, GripOutcome::Holding) => {
+                        held_width_m = measured;
+                        closed_on_object = true;
+                    }
                     (true, _) => return Ok(PickOutcome::NoObject),
                     (false, GripOutcome::ContactWhileOpening) => {
                         return Err(Error::Controller(format!(

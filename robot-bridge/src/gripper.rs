@@ -103,6 +103,13 @@ impl Gripper {
         Ok(())
     }
 
+    /// Whether the fingers still hold what they stopped on when closing
+    /// (`OBJ 2`; an object that slipped out lets them go on to the
+    /// requested position, `OBJ 3`).
+    pub fn holding(&mut self) -> Result<bool> {
+        Ok(self.get("OBJ")? == 2)
+    }
+
     /// Moves to `width_m` with speed and force in 0..=255, waits for the
     /// motion to end, and says how it ended with the measured opening.
     pub fn move_to(&mut self, width_m: f64, speed: u8, force: u8) -> Result<(GripOutcome, f64)> {

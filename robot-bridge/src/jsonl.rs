@@ -23,7 +23,12 @@
 //!   planner's answer into them. A `movel` step carries its joint
 //!   samples every centimetre (`path`), so the straight line is the one the
 //!   bridge checked. `refused` says, for each better-ranked grasp that was
-//!   skipped, why.
+//!   skipped, why;
+//! - `{"order": {"grasps": [{"position", "orientation"}], "failed": [...]}}`
+//!   -> `{"ok": true, "order": [k...]}`, the order to try ranked grasps in
+//!   once the picks at the `failed` poses came up empty
+//!   (`PickConfig::order_after_failures`): a caller that keeps a scene's
+//!   failed picks asks this before `plan`.
 //!
 //! Any error is an answer `{"ok": false, "error": "..."}`; the loop goes on.
 
@@ -52,6 +57,23 @@ enum Request {
     /// A pick for ranked grasps.
     #[serde(rename = "plan")]
     Plan(PlanRequest),
+    /// The order to try grasps in after failed picks.
+    #[serde(rename = "order")]
+    Order(OrderRequest),
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OrderRequest {
+    grasps: Vec<PoseJson>,
+    failed: Vec<PoseJson>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PoseJson {
+    position: [f64; 3],
+    orientation: [f64; 4],
 }
 
 #[derive(Debug, Deserialize)]
@@ -171,6 +193,24 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                     "min_axis_m": r.min_axis_m,
                 },
             }))
+        }
+        Request::Order(order) => {
+            let poses = |list: &[PoseJson], field| {
+                list.iter()
+                    .map(|p| pose(field, p.position, p.orientation))
+                    .collect::<Result<Vec<_>>>()
+            };
+            let grasps = poses(&order.grasps, "grasp pose")?
+                .into_iter()
+                .map(|world_from_grasp| GraspTarget {
+                    world_from_grasp,
+                    width_m: 0.0,
+                    quality: 0.0,
+                    object: None,
+                })
+                .collect::<Vec<_>>();
+            let failed = poses(&order.failed, "failed pose")?;
+            Ok(serde_json::json!({"ok": true, "order": config.order_after_failures(&grasps, &failed)}))
         }
         Request::Plan(plan) => {
             let grasps = plan
@@ -320,6 +360,28 @@ mod tests {
                 "{last} vs {end}"
             );
         }
+    }
+
+    #[test]
+    fn the_order_puts_a_failed_spot_last() {
+        // Grasp 0 is the failed pick turned half a turn about its approach
+        // (the same closing line); grasp 1 is 5 cm away.
+        let line = r#"{"order": {"grasps": [
+            {"position": [0.3, 0.0, 0.05], "orientation": [0, 1, 0, 0]},
+            {"position": [0.35, 0.0, 0.05], "orientation": [1, 0, 0, 0]}],
+            "failed": [{"position": [0.3, 0.0, 0.05], "orientation": [1, 0, 0, 0]}]}}"#;
+        let v = ask(&line.replace('\n', " "));
+        assert_eq!(v["ok"], true, "{v}");
+        assert_eq!(v["order"], serde_json::json!([1, 0]));
+        let none_failed = ask(
+            r#"{"order": {"grasps": [{"position": [0, 0, 0], "orientation": [0, 0, 0, 1]}], "failed": []}}"#,
+        );
+        assert_eq!(none_failed["order"], serde_json::json!([0]));
+        let bad = ask(
+            r#"{"order": {"grasps": [], "failed": [{"position": [0, 0, 0], "orientation": [0, 0, 0, 0]}]}}"#,
+        );
+        assert_eq!(bad["ok"], false);
+        assert!(bad["error"].as_str().unwrap().contains("failed pose"), "{bad}");
     }
 
     #[test]

@@ -82,6 +82,14 @@ enum Command {
         /// Print the URScript instead of moving the robot.
         #[arg(long)]
         dry_run: bool,
+        /// Picks that came up empty-handed on this scene (closed on nothing,
+        /// or held nothing over the basket), one JSON pose a line
+        /// (`{"position": [x, y, z], "orientation": [x, y, z, w]}`, world):
+        /// grasps repeating one are tried last (`[pick] failed_radius_m`),
+        /// and a pick that comes up empty-handed is added. Delete it when
+        /// the scene changes.
+        #[arg(long, env = "ROBOT_BRIDGE_FAILED_PICKS")]
+        failed_picks: Option<std::path::PathBuf>,
     },
     /// Run the controller emulator (RTDE + script receiver) until interrupted.
     Emulate {
@@ -176,6 +184,7 @@ fn main() -> anyhow::Result<()> {
             basket,
             planner,
             dry_run,
+            failed_picks,
         } => {
             let mut settings = match &config {
                 Some(path) => BridgeConfig::load(path)?,
@@ -202,7 +211,7 @@ fn main() -> anyhow::Result<()> {
                 settings.planner.endpoint = planner;
             }
             settings.validate()?;
-            pick(&arm, &depth, &camera, &settings, dry_run)?;
+            pick(&arm, &depth, &camera, &settings, dry_run, failed_picks.as_deref())?;
         }
         Command::Emulate {
             host,
@@ -261,6 +270,7 @@ fn pick(
     camera: &std::path::Path,
     settings: &BridgeConfig,
     dry_run: bool,
+    failed_picks: Option<&std::path::Path>,
 ) -> anyhow::Result<()> {
     use std::time::Duration;
 
@@ -306,13 +316,22 @@ fn pick(
         Some(client) => client.next_state()?.actual_q,
         None => HOME,
     };
-    let plan =
-        plan_pick(arm, &config, &planned.grasps, &planned.objects, &current).context("no feasible pick")?;
-    let grasp = &planned.grasps[plan.grasp_index];
+    let failed = match failed_picks {
+        Some(path) => match std::fs::read_to_string(path) {
+            Ok(text) => robot_bridge::pick::parse_failed_picks(&text)?,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
+            Err(e) => return Err(anyhow::anyhow!(e).context(format!("reading {}", path.display()))),
+        },
+        None => Vec::new(),
+    };
+    let order = config.order_after_failures(&planned.grasps, &failed);
+    let ordered: Vec<_> = order.iter().map(|&k| planned.grasps[k]).collect();
+    let plan = plan_pick(arm, &config, &ordered, &planned.objects, &current).context("no feasible pick")?;
+    let grasp = &ordered[plan.grasp_index];
     let p = grasp.world_from_grasp.translation.vector;
     println!(
         "picking grasp {} (quality {:.2}, width {:.0} mm) at ({:.3}, {:.3}, {:.3}) m:",
-        plan.grasp_index + 1,
+        order[plan.grasp_index] + 1,
         grasp.quality,
         grasp.width_m * 1000.0,
         p.x,
@@ -354,6 +373,17 @@ fn pick(
     match execute_pick(&mut controller, &plan, &config) {
         Ok(outcome) => {
             println!("outcome: {outcome:?}");
+            if let (true, Some(path)) = (outcome.empty_handed(), failed_picks) {
+                use std::io::Write;
+                let line = robot_bridge::pick::failed_pick_line(&grasp.world_from_grasp);
+                std::fs::OpenOptions::new()
+                    .create(true)
+                    .append(true)
+                    .open(path)
+                    .and_then(|mut f| writeln!(f, "{line}"))
+                    .with_context(|| format!("writing {}", path.display()))?;
+                println!("added to {}: the next pick tries elsewhere first", path.display());
+            }
             Ok(())
         }
         Err(stop @ robot_bridge::Error::ProtectiveStop { .. })

@@ -41,6 +41,11 @@ impl GripperSim {
     /// One servo tick of `dt` seconds: 20-150 mm/s by the speed register;
     /// closing stops on the object, if there is one.
     pub(super) fn tick(&mut self, dt: f64) {
+        if self.obj == 2 && self.object_width_m.is_none() {
+            // The held object slipped out: the fingers go on to the request.
+            self.moving = true;
+            self.obj = 0;
+        }
         if !self.moving {
             return;
         }

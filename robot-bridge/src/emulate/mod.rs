@@ -200,7 +200,9 @@ impl Emulator {
         })
     }
 
-    /// Sets the width of the object the gripper will close on (`None`: nothing there).
+    /// Sets the width of the object the gripper will close on (`None`:
+    /// nothing there; a held object then slips out, and the fingers go on
+    /// closing).
     pub fn set_object_width(&self, width_m: Option<f64>) {
         self.shared.gripper().object_width_m = width_m;
     }

@@ -52,6 +52,37 @@ pub struct GraspTarget {
     pub object: Option<usize>,
 }
 
+/// Failed picks as the `pick` command keeps them (`--failed-picks`): one
+/// JSON pose a line, `{"position": [x, y, z], "orientation": [x, y, z, w]}`
+/// (world); blank lines are skipped, a bad line is named.
+pub fn parse_failed_picks(text: &str) -> Result<Vec<Isometry3<f64>>> {
+    #[derive(serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Line {
+        position: [f64; 3],
+        orientation: [f64; 4],
+    }
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(n, l)| {
+            let bad = |reason: String| Error::InvalidInput {
+                field: "failed picks",
+                reason: format!("line {}: {reason}", n + 1),
+            };
+            let line: Line = serde_json::from_str(l).map_err(|e| bad(e.to_string()))?;
+            mvgrasp_core::pose_from_parts("pose", line.position, line.orientation)
+                .map_err(|e| bad(e.to_string()))
+        })
+        .collect()
+}
+
+/// One line of a failed-picks file for a grasp pose (`parse_failed_picks`).
+pub fn failed_pick_line(world_from_grasp: &Isometry3<f64>) -> String {
+    let (p, r) = (world_from_grasp.translation.vector, world_from_grasp.rotation);
+    serde_json::json!({"position": [p.x, p.y, p.z], "orientation": [r.i, r.j, r.k, r.w]}).to_string()
+}
+
 /// Cell and gripper calibration, and motion limits.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PickConfig {
@@ -122,6 +153,13 @@ pub struct PickConfig {
     /// swept 10 cm back along the approach; on the referee's test pools
     /// with the approach cone: docs/experiments/2026-11-28-bridge-palm.md).
     pub check_palm_near_grasp: bool,
+    /// A grasp within this distance (m) of one whose pick came up empty,
+    /// its approach and closing directions within `failed_angle_deg` of
+    /// that one's, is tried after every other grasp (a retry of a spot that
+    /// failed, last: [`PickConfig::order_after_failures`]; 0: never).
+    pub failed_radius_m: f64,
+    /// See `failed_radius_m` (degrees).
+    pub failed_angle_deg: f64,
     /// RRT-Connect seed (paths are deterministic per seed).
     pub rrt_seed: u64,
     /// RRT-Connect iterations before giving up.
@@ -155,6 +193,8 @@ impl Default for PickConfig {
             arm_model: ArmModel::default(),
             check_fingers_near_grasp: false,
             check_palm_near_grasp: false,
+            failed_radius_m: 0.02,
+            failed_angle_deg: 20.0,
             rrt_seed: 1,
             rrt_iterations: 3000,
         }
@@ -213,6 +253,31 @@ pub struct PickPlan {
 }
 
 impl PickConfig {
+    /// Whether `grasp` tries the spot of `failed` again: centres within
+    /// `failed_radius_m`, approach and closing directions within
+    /// `failed_angle_deg` (a parallel jaw closes the same either way round).
+    pub fn repeats(&self, grasp: &Isometry3<f64>, failed: &Isometry3<f64>) -> bool {
+        let cos = self.failed_angle_deg.to_radians().cos();
+        let axis = |pose: &Isometry3<f64>, v: Vector3<f64>| pose.rotation * v;
+        (grasp.translation.vector - failed.translation.vector).norm() < self.failed_radius_m
+            && axis(grasp, Vector3::z()).dot(&axis(failed, Vector3::z())) >= cos
+            && axis(grasp, Vector3::x()).dot(&axis(failed, Vector3::x())).abs() >= cos
+    }
+
+    /// The order to try ranked `grasps` in once the picks at `failed` came
+    /// up empty (the gripper closed on nothing): by rank, except that a
+    /// grasp repeating a failed one goes after every other. A scene that
+    /// did not change offers the same grasps again; the same pick would
+    /// come up empty again, while a repeat still beats giving up.
+    pub fn order_after_failures(&self, grasps: &[GraspTarget], failed: &[Isometry3<f64>]) -> Vec<usize> {
+        let (fresh, repeats): (Vec<usize>, Vec<usize>) = (0..grasps.len()).partition(|&k| {
+            !failed
+                .iter()
+                .any(|f| self.repeats(&grasps[k].world_from_grasp, f))
+        });
+        fresh.into_iter().chain(repeats).collect()
+    }
+
     /// How far the fingers open for the approach to a grasp `width_m` wide.
     pub fn approach_opening(&self, width_m: f64) -> f64 {
         (width_m + self.approach_clearance_m).clamp(0.0, 0.14)
@@ -414,5 +479,64 @@ mod tests {
                 "told {told} of {unreachable} unreachable grasps, {reach:?}"
             );
         }
+    }
+
+    #[test]
+    fn a_grasp_that_repeats_a_failed_pick_is_tried_last() {
+        let down = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI);
+        let at = |x: f64, y: f64, turn_deg: f64, tilt_deg: f64| GraspTarget {
+            world_from_grasp: Isometry3::from_parts(
+                Translation3::new(x, y, 0.05),
+                UnitQuaternion::from_axis_angle(&Vector3::y_axis(), tilt_deg.to_radians())
+                    * down
+                    * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn_deg.to_radians()),
+            ),
+            width_m: 0.05,
+            quality: 0.9,
+            object: None,
+        };
+        let failed = [at(0.4, 0.0, 0.0, 0.0).world_from_grasp];
+        let grasps = [
+            at(0.41, 0.0, 180.0, 0.0), // the same closing line, 1 cm off: a repeat
+            at(0.4, 0.0, 90.0, 0.0),   // closing across it
+            at(0.4, 0.0, 0.0, 30.0),   // from 30 degrees off
+            at(0.43, 0.0, 0.0, 0.0),   // 3 cm away
+            at(0.4, 0.01, 10.0, 10.0), // within 2 cm and 20 degrees
+        ];
+        let config = PickConfig::default();
+        assert_eq!(config.order_after_failures(&grasps, &failed), vec![1, 2, 3, 0, 4]);
+        assert_eq!(config.order_after_failures(&grasps, &[]), vec![0, 1, 2, 3, 4]);
+        let never = PickConfig {
+            failed_radius_m: 0.0,
+            ..PickConfig::default()
+        };
+        assert_eq!(never.order_after_failures(&grasps, &failed), vec![0, 1, 2, 3, 4]);
+    }
+
+    #[test]
+    fn failed_picks_read_back_as_written() {
+        let pose = Isometry3::from_parts(
+            Translation3::new(0.4, -0.1, 0.03),
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI)
+                * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.7),
+        );
+        let text = format!(
+            "{}\n\n{}\n",
+            failed_pick_line(&pose),
+            failed_pick_line(&Isometry3::identity())
+        );
+        let read = parse_failed_picks(&text).unwrap();
+        assert_eq!(read.len(), 2);
+        assert!((read[0].translation.vector - pose.translation.vector).norm() < 1e-12);
+        assert!(read[0].rotation.angle_to(&pose.rotation) < 1e-9);
+        let bad = parse_failed_picks(&format!("{text}{{\"position\": [0, 0]}}\n")).unwrap_err();
+        assert!(bad.to_string().contains("line 4"), "{bad}");
+        let zero = r#"{"position": [0, 0, 0], "orientation": [0, 0, 0, 0]}"#;
+        assert!(
+            parse_failed_picks(zero)
+                .unwrap_err()
+                .to_string()
+                .contains("line 1")
+        );
     }
 }

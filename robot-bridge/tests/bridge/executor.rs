@@ -61,6 +61,46 @@ fn an_empty_grasp_stops_at_the_object() {
 }
 
 #[test]
+fn an_object_lost_on_the_way_is_not_let_go_of_over_the_basket() {
+    let emu = emulator();
+    emu.set_object_width(Some(0.05));
+    let mut c = controller(&emu);
+    let (plan, config) = fast_pick_plan();
+    let Step::MoveL { joints: at_grasp, .. } = plan.steps[2].clone() else {
+        panic!("approach")
+    };
+    let near = |q: [f64; 6]| (0..6).all(|i| (q[i] - at_grasp[i]).abs() < 1e-3);
+    let outcome = std::thread::scope(|s| {
+        s.spawn(|| {
+            // Once the arm leaves the grasp with the object, it slips out.
+            let start = Instant::now();
+            while !near(emu.joints()) && start.elapsed() < Duration::from_secs(5) {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            while near(emu.joints()) && start.elapsed() < Duration::from_secs(10) {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            emu.set_object_width(None);
+        });
+        execute_pick(&mut c, &plan, &config).expect("pick")
+    });
+    assert_eq!(outcome, PickOutcome::Lost);
+    assert!(outcome.empty_handed() && PickOutcome::NoObject.empty_handed());
+    assert!(!PickOutcome::Placed { held_width_m: 0.05 }.empty_handed());
+    // Stopped over the basket, before the release.
+    let release = plan
+        .steps
+        .iter()
+        .position(|s| matches!(s, Step::Gripper { name: "release", .. }))
+        .expect("release");
+    let Step::MoveJ { joints: over, .. } = &plan.steps[release - 1] else {
+        panic!("over the basket: {:?}", plan.steps[release - 1])
+    };
+    let q = emu.joints();
+    assert!((0..6).all(|i| (q[i] - over[i]).abs() < 1e-3), "{q:?} vs {over:?}");
+}
+
+#[test]
 fn a_dropped_rtde_link_mid_pick_stops_the_arm() {
     let emu = emulator();
     let mut c = controller(&emu);

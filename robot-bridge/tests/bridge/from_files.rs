@@ -260,3 +260,63 @@ fn the_cli_dry_run_prints_a_script() {
         "{stdout}"
     );
 }
+
+/// `pick --failed-picks FILE`: the grasp the dry run picks, written to the
+/// file as a pick that came up empty, is not the one picked next (the file
+/// itself is left alone by a dry run); a bad line is named.
+#[test]
+fn the_cli_tries_a_grasp_that_came_up_empty_last() {
+    let dir = std::env::temp_dir().join(format!("rb-failed-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let run = |failed: Option<&std::path::Path>| {
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_robot-bridge"));
+        cmd.args(["pick", "--dry-run", "--depth"])
+            .arg(sample("depth.png"))
+            .arg("--camera")
+            .arg(sample("camera.json"));
+        if let Some(path) = failed {
+            cmd.arg("--failed-picks").arg(path);
+        }
+        cmd.output().expect("runs")
+    };
+    let picked = |out: &std::process::Output| -> usize {
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{stdout}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let line = stdout
+            .lines()
+            .find(|l| l.starts_with("picking grasp "))
+            .expect("picking line");
+        line["picking grasp ".len()..]
+            .split(' ')
+            .next()
+            .and_then(|n| n.parse().ok())
+            .expect("rank")
+    };
+    let first = picked(&run(None));
+    // The same grasps as the CLI's: the in-process planner, the default request.
+    let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
+    let ask = robot_bridge::config::BridgeConfig::default()
+        .ask(&Ur5e::default())
+        .expect("ask");
+    let planned = plan_locally(&scene, &ask).expect("planned");
+    let file = dir.join("failed.jsonl");
+    let line = robot_bridge::pick::failed_pick_line(&planned.grasps[first - 1].world_from_grasp);
+    std::fs::write(&file, format!("{line}\n")).expect("write");
+    let second = picked(&run(Some(&file)));
+    assert_ne!(second, first);
+    assert_eq!(std::fs::read_to_string(&file).expect("read"), format!("{line}\n"));
+    // No file yet: nothing failed.
+    assert_eq!(picked(&run(Some(&dir.join("none.jsonl")))), first);
+    std::fs::write(&file, "{\"position\": [0, 0]}\n").expect("write");
+    let out = run(Some(&file));
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("line 1"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
