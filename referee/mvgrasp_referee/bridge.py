@@ -50,9 +50,9 @@ def config_toml(tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_
     tcp_q = [0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4)]
     (bx, by, bz), (hx, hy, hz) = cellmod.bin_box(bin_fill_m)
     fmt = ", ".join
-    clearance = "" if approach_clearance_m is None else f"approach_clearance_m = {approach_clearance_m:.4f}\n"
+    pick_keys = "" if approach_clearance_m is None else f"approach_clearance_m = {approach_clearance_m:.4f}\n"
     if failed_radius_m is not None:
-        clearance += f"failed_radius_m = {failed_radius_m:.4f}\n"
+        pick_keys += f"failed_radius_m = {failed_radius_m:.4f}\n"
     return f"""[robot]
 world_from_base = {{ position = [{fmt(f"{v:.6f}" for v in position)}], orientation = [{fmt(f"{v:.9f}" for v in base_q)}] }}
 flange_from_tcp = {{ position = [{fmt(f"{v:.6f}" for v in tcp_in_flange)}], orientation = [{fmt(f"{v:.9f}" for v in tcp_q)}] }}
@@ -61,7 +61,7 @@ fingertip_travel = [{fmt(f"[{w}, {d}]" for w, d in fingertip_travel)}]
 [pick]
 world_from_drop = {{ position = [{bx:.4f}, {by:.4f}, {cellmod.DROP_HEIGHT_M:.4f}], orientation = [1.0, 0.0, 0.0, 0.0] }}
 basket = {{ centre = [{bx:.4f}, {by:.4f}, {bz:.4f}], half_extents_m = [{hx:.4f}, {hy:.4f}, {hz:.4f}] }}
-{clearance}"""
+{pick_keys}"""
 
 
 class Bridge:

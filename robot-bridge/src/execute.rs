@@ -84,21 +84,17 @@ pub fn execute_pick(
             Step::MoveJ { .. } | Step::MoveL { .. } => chunk.push(step.clone()),
             Step::Gripper { name, close, width_m } => {
                 run_chunk(controller, &mut chunk, plan.grasp_index, config)?;
+                let stalled =
+                    |e: Error| Error::Controller(format!("gripper ({name}): {e}; the arm is still"));
                 // Before letting go: is the object still there?
-                if closed_on_object
-                    && !*close
-                    && !controller
-                        .gripper
-                        .holding()
-                        .map_err(|e| Error::Controller(format!("gripper ({name}): {e}; the arm is still")))?
-                {
+                if closed_on_object && !*close && !controller.gripper.holding().map_err(stalled)? {
                     return Ok(PickOutcome::Lost);
                 }
                 let target = if *close { 0.0 } else { *width_m };
                 let (outcome, measured) = controller
                     .gripper
                     .move_to(target, GRIP_SPEED, GRIP_FORCE)
-                    .map_err(|e| Error::Controller(format!("gripper ({name}): {e}; the arm is still")))?;
+                    .map_err(stalled)?;
                 match (close, outcome) {
                     (true, GripOutcome::Holding) => {
                         held_width_m = measured;

@@ -40,7 +40,7 @@ use serde::Deserialize;
 
 use crate::collision::BoxObstacle;
 use crate::error::{Error, Result};
-use crate::pick::{GraspTarget, PickConfig, plan_pick};
+use crate::pick::{GraspTarget, PickConfig, PoseJson, plan_pick};
 use crate::planner::{ObjectBox, obstacles};
 use crate::ur5e::{Joints, Ur5e};
 
@@ -67,13 +67,6 @@ enum Request {
 struct OrderRequest {
     grasps: Vec<PoseJson>,
     failed: Vec<PoseJson>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct PoseJson {
-    position: [f64; 3],
-    orientation: [f64; 4],
 }
 
 #[derive(Debug, Deserialize)]
@@ -200,15 +193,7 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                     .map(|p| pose(field, p.position, p.orientation))
                     .collect::<Result<Vec<_>>>()
             };
-            let grasps = poses(&order.grasps, "grasp pose")?
-                .into_iter()
-                .map(|world_from_grasp| GraspTarget {
-                    world_from_grasp,
-                    width_m: 0.0,
-                    quality: 0.0,
-                    object: None,
-                })
-                .collect::<Vec<_>>();
+            let grasps = poses(&order.grasps, "grasp pose")?;
             let failed = poses(&order.failed, "failed pose")?;
             Ok(serde_json::json!({"ok": true, "order": config.order_after_failures(&grasps, &failed)}))
         }

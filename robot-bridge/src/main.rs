@@ -324,7 +324,8 @@ fn pick(
         },
         None => Vec::new(),
     };
-    let order = config.order_after_failures(&planned.grasps, &failed);
+    let poses: Vec<_> = planned.grasps.iter().map(|g| g.world_from_grasp).collect();
+    let order = config.order_after_failures(&poses, &failed);
     let ordered: Vec<_> = order.iter().map(|&k| planned.grasps[k]).collect();
     let plan = plan_pick(arm, &config, &ordered, &planned.objects, &current).context("no feasible pick")?;
     let grasp = &ordered[plan.grasp_index];

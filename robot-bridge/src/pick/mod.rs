@@ -52,16 +52,19 @@ pub struct GraspTarget {
     pub object: Option<usize>,
 }
 
+/// A pose as the bridge's JSON lines carry it (world; quaternion x y z w):
+/// a failed-picks line, a `plan-jsonl` `order` request's grasps.
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct PoseJson {
+    pub(crate) position: [f64; 3],
+    pub(crate) orientation: [f64; 4],
+}
+
 /// Failed picks as the `pick` command keeps them (`--failed-picks`): one
 /// JSON pose a line, `{"position": [x, y, z], "orientation": [x, y, z, w]}`
 /// (world); blank lines are skipped, a bad line is named.
 pub fn parse_failed_picks(text: &str) -> Result<Vec<Isometry3<f64>>> {
-    #[derive(serde::Deserialize)]
-    #[serde(deny_unknown_fields)]
-    struct Line {
-        position: [f64; 3],
-        orientation: [f64; 4],
-    }
     text.lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty())
@@ -70,7 +73,7 @@ pub fn parse_failed_picks(text: &str) -> Result<Vec<Isometry3<f64>>> {
                 field: "failed picks",
                 reason: format!("line {}: {reason}", n + 1),
             };
-            let line: Line = serde_json::from_str(l).map_err(|e| bad(e.to_string()))?;
+            let line: PoseJson = serde_json::from_str(l).map_err(|e| bad(e.to_string()))?;
             mvgrasp_core::pose_from_parts("pose", line.position, line.orientation)
                 .map_err(|e| bad(e.to_string()))
         })
@@ -264,17 +267,14 @@ impl PickConfig {
             && axis(grasp, Vector3::x()).dot(&axis(failed, Vector3::x())).abs() >= cos
     }
 
-    /// The order to try ranked `grasps` in once the picks at `failed` came
+    /// The order to try ranked grasp poses in once the picks at `failed` came
     /// up empty (the gripper closed on nothing): by rank, except that a
     /// grasp repeating a failed one goes after every other. A scene that
     /// did not change offers the same grasps again; the same pick would
     /// come up empty again, while a repeat still beats giving up.
-    pub fn order_after_failures(&self, grasps: &[GraspTarget], failed: &[Isometry3<f64>]) -> Vec<usize> {
-        let (fresh, repeats): (Vec<usize>, Vec<usize>) = (0..grasps.len()).partition(|&k| {
-            !failed
-                .iter()
-                .any(|f| self.repeats(&grasps[k].world_from_grasp, f))
-        });
+    pub fn order_after_failures(&self, grasps: &[Isometry3<f64>], failed: &[Isometry3<f64>]) -> Vec<usize> {
+        let (fresh, repeats): (Vec<usize>, Vec<usize>) =
+            (0..grasps.len()).partition(|&k| !failed.iter().any(|f| self.repeats(&grasps[k], f)));
         fresh.into_iter().chain(repeats).collect()
     }
 
@@ -484,18 +484,15 @@ mod tests {
     #[test]
     fn a_grasp_that_repeats_a_failed_pick_is_tried_last() {
         let down = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI);
-        let at = |x: f64, y: f64, turn_deg: f64, tilt_deg: f64| GraspTarget {
-            world_from_grasp: Isometry3::from_parts(
+        let at = |x: f64, y: f64, turn_deg: f64, tilt_deg: f64| {
+            Isometry3::from_parts(
                 Translation3::new(x, y, 0.05),
                 UnitQuaternion::from_axis_angle(&Vector3::y_axis(), tilt_deg.to_radians())
                     * down
                     * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn_deg.to_radians()),
-            ),
-            width_m: 0.05,
-            quality: 0.9,
-            object: None,
+            )
         };
-        let failed = [at(0.4, 0.0, 0.0, 0.0).world_from_grasp];
+        let failed = [at(0.4, 0.0, 0.0, 0.0)];
         let grasps = [
             at(0.41, 0.0, 180.0, 0.0), // the same closing line, 1 cm off: a repeat
             at(0.4, 0.0, 90.0, 0.0),   // closing across it

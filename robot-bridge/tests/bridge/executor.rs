@@ -16,6 +16,11 @@ fn controller(emu: &Emulator) -> Controller {
     }
 }
 
+/// The arm at `joints` (within 1e-3 rad each).
+fn at(q: &Joints, joints: &Joints) -> bool {
+    (0..6).all(|i| (q[i] - joints[i]).abs() < 1e-3)
+}
+
 #[test]
 fn a_pick_with_an_object_is_placed() {
     let emu = emulator();
@@ -31,10 +36,7 @@ fn a_pick_with_an_object_is_placed() {
         panic!("retreat")
     };
     let q = emu.joints();
-    assert!(
-        (0..6).all(|i| (q[i] - joints[i]).abs() < 1e-3),
-        "{q:?} vs {joints:?}"
-    );
+    assert!(at(&q, joints), "{q:?} vs {joints:?}");
 }
 
 #[test]
@@ -52,10 +54,7 @@ fn an_empty_grasp_stops_at_the_object() {
         panic!("approach")
     };
     let q = emu.joints();
-    assert!(
-        (0..6).all(|i| (q[i] - joints[i]).abs() < 1e-3),
-        "{q:?} vs {joints:?}"
-    );
+    assert!(at(&q, joints), "{q:?} vs {joints:?}");
     std::thread::sleep(Duration::from_millis(100));
     assert_eq!(emu.joints(), q, "and it stays there");
 }
@@ -69,15 +68,14 @@ fn an_object_lost_on_the_way_is_not_let_go_of_over_the_basket() {
     let Step::MoveL { joints: at_grasp, .. } = plan.steps[2].clone() else {
         panic!("approach")
     };
-    let near = |q: [f64; 6]| (0..6).all(|i| (q[i] - at_grasp[i]).abs() < 1e-3);
     let outcome = std::thread::scope(|s| {
         s.spawn(|| {
             // Once the arm leaves the grasp with the object, it slips out.
             let start = Instant::now();
-            while !near(emu.joints()) && start.elapsed() < Duration::from_secs(5) {
+            while !at(&emu.joints(), &at_grasp) && start.elapsed() < Duration::from_secs(5) {
                 std::thread::sleep(Duration::from_millis(1));
             }
-            while near(emu.joints()) && start.elapsed() < Duration::from_secs(10) {
+            while at(&emu.joints(), &at_grasp) && start.elapsed() < Duration::from_secs(10) {
                 std::thread::sleep(Duration::from_millis(1));
             }
             emu.set_object_width(None);
@@ -97,7 +95,7 @@ fn an_object_lost_on_the_way_is_not_let_go_of_over_the_basket() {
         panic!("over the basket: {:?}", plan.steps[release - 1])
     };
     let q = emu.joints();
-    assert!((0..6).all(|i| (q[i] - over[i]).abs() < 1e-3), "{q:?} vs {over:?}");
+    assert!(at(&q, over), "{q:?} vs {over:?}");
 }
 
 #[test]
