@@ -37,12 +37,14 @@ def matrix_xyzw(quaternion):
 
 
 def config_toml(tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_M, approach_clearance_m=None,
-                failed_radius_m=None):
+                failed_radius_m=None, release_height_m=None):
     """The bridge's settings for this cell (robot-bridge/bridge.toml's keys);
     `fingertip_travel` as `gripper.fingertip_travel` gives it (empty: a rigid
     TCP); the basket reaches `bin_fill_m` high; the fingers open
     `approach_clearance_m` wider than a grasp; a grasp within
-    `failed_radius_m` of a pick that came up empty is tried last (None: the
+    `failed_radius_m` of a pick that came up empty is tried last; the hand
+    goes down towards `release_height_m` over the bin's floor before letting
+    go, stopping on contact (0: lets go at the drop pose) (None: the
     bridge's defaults)."""
     position, yaw = cellmod.WORLD_FROM_BASE
     base_q = [0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)]
@@ -53,6 +55,8 @@ def config_toml(tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_
     pick_keys = "" if approach_clearance_m is None else f"approach_clearance_m = {approach_clearance_m:.4f}\n"
     if failed_radius_m is not None:
         pick_keys += f"failed_radius_m = {failed_radius_m:.4f}\n"
+    if release_height_m is not None:
+        pick_keys += f"release_height_m = {release_height_m:.4f}\n"
     return f"""[robot]
 world_from_base = {{ position = [{fmt(f"{v:.6f}" for v in position)}], orientation = [{fmt(f"{v:.9f}" for v in base_q)}] }}
 flange_from_tcp = {{ position = [{fmt(f"{v:.6f}" for v in tcp_in_flange)}], orientation = [{fmt(f"{v:.9f}" for v in tcp_q)}] }}
@@ -68,12 +72,12 @@ class Bridge:
     """A running `robot-bridge plan-jsonl` process."""
 
     def __init__(self, binary, tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_M,
-                 approach_clearance_m=None, failed_radius_m=None):
+                 approach_clearance_m=None, failed_radius_m=None, release_height_m=None):
         if not os.path.exists(binary):
             raise FileNotFoundError(f"{binary}: build it with `cargo build --release -p mvgrasp-robot-bridge`")
         self._config = tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False)
         self._config.write(config_toml(tcp_in_flange, fingertip_travel, bin_fill_m, approach_clearance_m,
-                                       failed_radius_m))
+                                       failed_radius_m, release_height_m))
         self._config.close()
         self.process = subprocess.Popen([binary, "plan-jsonl", "--config", self._config.name],
                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)

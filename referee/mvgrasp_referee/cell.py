@@ -380,20 +380,24 @@ def bin_box(fill_m=BIN_FILL_M):
     return (bx, by, fill_m / 2), (half, half, fill_m / 2)
 
 
-def bin_top(cell):
-    """The highest point (z, m) of the objects lying in the bin (0 when none):
-    each geom's bounding box turned into the world, so a little high."""
+def height_span(cell, index):
+    """The lowest and highest points (z, m) of object `index`: each geom's
+    bounding box turned into the world, so a little wide."""
     m, d = cell.model, cell.data
-    top = 0.0
-    for i, body in enumerate(cell.object_body_ids):
-        if not in_bin(cell.object_pose(i)[0]):
-            continue
-        for g in np.flatnonzero(m.geom_bodyid == body):
-            centre, half = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
-            rot = d.geom_xmat[g].reshape(3, 3)
-            z = d.geom_xpos[g][2] + rot[2] @ centre + np.abs(rot[2]) @ half
-            top = max(top, float(z))
-    return top
+    low, high = math.inf, -math.inf
+    for g in np.flatnonzero(m.geom_bodyid == cell.object_body_ids[index]):
+        centre, half = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
+        rot = d.geom_xmat[g].reshape(3, 3)
+        z, reach = d.geom_xpos[g][2] + rot[2] @ centre, np.abs(rot[2]) @ half
+        low, high = min(low, float(z - reach)), max(high, float(z + reach))
+    return low, high
+
+
+def bin_top(cell):
+    """The highest point (z, m) of the objects lying in the bin (0 when none),
+    a little high (`height_span`)."""
+    return max([height_span(cell, i)[1] for i in range(len(cell.object_body_ids))
+                if in_bin(cell.object_pose(i)[0])], default=0.0)
 
 
 def in_bin(position):

@@ -2,10 +2,12 @@
 
 Joint moves are interpolated in time (a smooth profile at `JOINT_SPEED`) and
 sent as targets to the arm's joint servos each step; straight moves run
-through the bridge's own 1 cm IK samples at `TOOL_SPEED`. The gripper opens
+through the bridge's own 1 cm IK samples at `TOOL_SPEED`; a guarded one
+(the descent into the bin before the release) stops at the first contact
+of the hand or what it holds with the cell or what lay in the bin. The gripper opens
 to the step's width, closes until the fingers stall, the object is lifted
-(the bridge's 15 cm), shaken, carried over the bin and released. After the
-release, and after a failed attempt once the hand has opened, the arm is
+(the bridge's 15 cm), shaken, carried over the bin, lowered into it where
+the bridge asks, and released. After the release, and after a failed attempt once the hand has opened, the arm is
 put back at its park pose (not simulated: `park`); a released object is
 judged where it comes to rest.
 
@@ -36,6 +38,7 @@ CLOSE_MAX_S = 1.5  # after the ramp
 SHAKE = (0.25, 2, 2.0)  # wrist 3 amplitude (rad), cycles, Hz
 HELD_LIFT_M = 0.05  # an object held after a lift is this much above where it was
 REST_MAX_S = 2.0  # how long a released object may take to come to rest
+LINEAR_STEP_M = 0.01  # the spacing of the bridge's linear samples
 
 
 class Run:
@@ -49,6 +52,7 @@ class Run:
         self.collisions = []  # (phase, geom names) of the arm meeting something
         self.phase = "start"
         self.frames = []  # optional snapshots (phase, qpos)
+        self.released_from_m = None  # the held object's lowest point (z) as the pads opened
 
     def step(self, n=1):
         for _ in range(n):
@@ -99,8 +103,10 @@ class Run:
                 return False
         return self.step(int(SETTLE_S / cellmod.TIMESTEP_S / 2))
 
-    def move_path(self, path, length_m):
-        """Through joint samples that are `length_m` of tool travel in all."""
+    def move_path(self, path, length_m, stop=None):
+        """Through joint samples that are `length_m` of tool travel in all;
+        a guarded move (`stop`, a test run after every physics step) holds
+        the arm where it is once the test is true."""
         duration = max(length_m / TOOL_SPEED, 0.2)
         per = max(int(duration / len(path) / cellmod.TIMESTEP_S), 1)
         q_prev = self.cell.arm_q()
@@ -110,8 +116,31 @@ class Run:
                 self.d.ctrl[self.cell.arm_act] = q_prev + k / per * (q - q_prev)
                 if not self.step():
                     return False
+                if stop is not None and stop():
+                    self.d.ctrl[self.cell.arm_act] = self.cell.arm_q()
+                    return self.step(int(SETTLE_S / cellmod.TIMESTEP_S / 2))
             q_prev = q
         return self.step(int(SETTLE_S / cellmod.TIMESTEP_S / 2))
+
+    def hand_meets_something(self, held, resting):
+        """Whether the fingers or the object `held` touch the cell (the bin,
+        the table) or one of the objects `resting` (those in the bin when
+        the attempt began): what the UR's tool contact detection stops a
+        guarded move on, here at the first contact. An object carried
+        along with the held one is not among them."""
+        c = self.cell
+        hand = c.finger_geoms[0] | c.finger_geoms[1]
+        held_body = None if held is None else c.object_body_ids[held]
+        resting_bodies = {c.object_body_ids[i] for i in resting}
+        for i in range(self.d.ncon):
+            con = self.d.contact[i]
+            for a, b in ((con.geom1, con.geom2), (con.geom2, con.geom1)):
+                if not (a in hand or self.m.geom_bodyid[a] == held_body) or b in c.robot_geoms:
+                    continue
+                body = self.m.geom_bodyid[b]
+                if body == 0 or body in resting_bodies:
+                    return True
+        return False
 
     def open_to(self, width_m, table):
         """Moves the pads to `width_m` at `close_speed_m_s` (the 2F-140 moves
@@ -191,6 +220,7 @@ def execute(cell, plan_steps, target, gap_table, close_speed_m_s=CLOSE_SPEED_M_S
     the pads moving at `close_speed_m_s`, and returns (outcome, details)."""
     run = Run(cell, target, close_speed_m_s=close_speed_m_s)
     start_z = {i: cell.object_pose(i)[0][2] for i in range(len(cell.bodies))}
+    in_bin = [i for i in range(len(cell.bodies)) if cellmod.in_bin(cell.object_pose(i)[0])]
     closed = False
     lifted = False
     picked = None
@@ -203,6 +233,7 @@ def execute(cell, plan_steps, target, gap_table, close_speed_m_s=CLOSE_SPEED_M_S
                 held = held_objects(cell)
                 if picked is None or picked not in held:
                     return "dropped-carry", _details(run, picked, empty_handed=True)
+                run.released_from_m = cellmod.height_span(cell, picked)[0]
                 run.open_to(0.14, gap_table)
                 run.step(int(0.8 / cellmod.TIMESTEP_S))
                 break
@@ -225,6 +256,11 @@ def execute(cell, plan_steps, target, gap_table, close_speed_m_s=CLOSE_SPEED_M_S
                 return "timeout", _details(run, picked)
             if run.phase == "pre-grasp" and run.collisions:
                 return "unreachable-sim", _details(run, picked)
+        elif kind == "movel" and step.get("until_contact"):
+            run.phase = "lower"
+            if not run.move_path(step["path"], LINEAR_STEP_M * len(step["path"]),
+                                 stop=lambda: run.hand_meets_something(picked, in_bin)):
+                return "timeout", _details(run, picked)
         elif kind == "movel":
             run.phase = "approach" if not closed else "lift"
             if not run.move_path(step["path"], 0.15 if closed else 0.10):
@@ -284,6 +320,8 @@ def _details(run, picked, empty_handed=False):
     (`NoObject`, `Lost`): not said of a release that lands outside the bin."""
     details = {"picked": picked, "collisions": sorted({f"{p}: {a} ~ {b}" for p, a, b in run.collisions})[:6],
                "sim_s": round(run.d.time, 3)}
+    if run.released_from_m is not None:
+        details["released_from_m"] = round(run.released_from_m, 4)  # the object's lowest point as the pads opened
     if empty_handed:
         details["empty_handed"] = True
     return details

@@ -92,6 +92,9 @@ def _cell_settings(meta):
         within = "the bridge's radius" if radius is None else f"{radius} m"
         parts.append(f"grasps within {within} of an empty-handed pick tried last"
                      if meta["failed_tried_last"] else "grasps in the planner's rank after an empty-handed pick")
+    if meta.get("lowered_before_release"):
+        parts.append(f"held objects lowered into the bin (to {meta['release_height_m']} m over its floor, "
+                     "stopping on contact) before the release")
     return "; " + ", ".join(parts) if parts else ""
 
 

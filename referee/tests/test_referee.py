@@ -434,6 +434,72 @@ class FailedPicksTest(unittest.TestCase):
         self.assertEqual(outcomes[0.0], ["empty"] * 3, outcomes)
 
 
+def upright_box(extents_m, mass_kg):
+    """A box `extents_m` (x, y, z) as an object body."""
+    import trimesh  # noqa: PLC0415
+
+    mesh = trimesh.creation.box(extents=extents_m)
+    v, f = np.asarray(mesh.vertices, float), np.asarray(mesh.faces)
+    surface, _ = trimesh.sample.sample_surface(mesh, 4000, seed=1)
+    return objects.Body("box", v, f, [v], float(mesh.volume), mass_kg, None, np.ptp(v, axis=0),
+                        np.asarray(surface, float))
+
+
+class ReleaseTest(unittest.TestCase):
+    def test_a_held_object_is_set_down_in_the_bin_and_the_descent_stops_on_what_lies_there(self):
+        """A 19 cm tall box picked from the top: with release_height_m
+        0.15 the hand goes down before letting go and the box is let go from
+        the bin's floor (not from 20 cm up, as with the bridge's default, 0);
+        with a 10 cm block lying in the bin the guarded descent stops on the
+        block, not through it."""
+        tall = upright_box((0.065, 0.065, 0.19), 0.35)
+        bx, by = cell.BIN_CENTRE_M
+        released = {}
+        for height, in_bin in ((0.15, False), (None, False), (0.15, True)):
+            bodies, poses = [tall], [((0.05, 0.0, 0.095), (1.0, 0.0, 0.0, 0.0))]
+            if in_bin:
+                bodies.append(upright_box((0.2, 0.2, 0.1), 1.0))
+                poses.append(((bx, by, 0.05), (1.0, 0.0, 0.0, 0.0)))
+            c = cell.build(bodies, poses)
+            mujoco.mj_forward(c.model, c.data)
+            b = bridge.Bridge(bridge_binary(), gripper.tcp_in_flange(c), gripper.fingertip_travel(c),
+                              release_height_m=height)
+            try:
+                oracle = planner.OraclePlanner()
+                grasp = oracle.grasp_for(c, 0)
+                asked = {**{k: grasp[k] for k in ("position", "orientation", "width_m", "quality")}, "object": None}
+                answer = b.plan([asked], planner.bridge_scene(oracle.plan_truth(c, [0])), c.arm_q())
+            finally:
+                b.close()
+            lowers = [s for s in answer["steps"] if s.get("until_contact")]
+            self.assertEqual([s["name"] for s in lowers], [] if height is None else ["lower"])
+            outcome, details = executor.execute(c, answer["steps"], 0, gripper.gap_table(c))
+            self.assertEqual(outcome, "success", details)
+            released[(height, in_bin)] = details["released_from_m"]
+            if in_bin:
+                self.assertLess(abs(cell.height_span(c, 1)[1] - 0.1), 0.005, "the block is not pushed down")
+        self.assertLess(released[(0.15, False)], 0.02, released)
+        self.assertGreater(released[(None, False)], 0.15, released)
+        self.assertTrue(0.095 < released[(0.15, True)] < 0.12, released)
+
+
+    def test_the_descent_stops_on_the_cell_and_on_what_lay_in_the_bin_not_on_what_is_carried(self):
+        """Two boxes touching in mid-air over the bin (one held, one carried
+        along): no stop, unless the other lay in the bin when the attempt
+        began; the held box on the bin's floor: a stop."""
+        bx, by = cell.BIN_CENTRE_M
+        boxes = [upright_box((0.06, 0.06, 0.06), 0.2), upright_box((0.06, 0.06, 0.06), 0.2)]
+        c = cell.build(boxes, [((bx, by, 0.25), (1.0, 0.0, 0.0, 0.0)), ((bx, by, 0.1905), (1.0, 0.0, 0.0, 0.0))])
+        mujoco.mj_forward(c.model, c.data)
+        run = executor.Run(c, 0)
+        self.assertGreater(c.data.ncon, 0, "the two boxes touch")
+        self.assertFalse(run.hand_meets_something(0, []))
+        self.assertTrue(run.hand_meets_something(0, [1]))
+        c = cell.build(boxes[:1], [((bx, by, 0.0299), (1.0, 0.0, 0.0, 0.0))])
+        mujoco.mj_forward(c.model, c.data)
+        self.assertTrue(executor.Run(c, 0).hand_meets_something(0, []), "on the bin's floor")
+
+
 class PlannerErrorTest(unittest.TestCase):
     def test_a_refused_frame_ends_the_episode_with_the_planners_reason(self):
         class Refusing:

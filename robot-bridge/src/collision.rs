@@ -218,6 +218,15 @@ impl CollisionWorld {
         self
     }
 
+    /// The same world with the arm's links alone checked, not the hand: for
+    /// the guarded descent into the basket, where the hand goes down into
+    /// the space the basket's box keeps for what lies in it, and stops
+    /// where what it holds meets something.
+    pub fn without_hand(mut self) -> Self {
+        self.hand.clear();
+        self
+    }
+
     /// The same world with the fingers checked against detected objects or
     /// not (they are by default; the housing, the linkage and the arm always
     /// are, and the fingers always against the cell). For the moves along

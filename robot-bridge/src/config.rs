@@ -94,6 +94,11 @@ pub struct PickSection {
     pub world_from_drop: PoseConfig,
     /// The basket, an obstacle for the arm.
     pub basket: BoxConfig,
+    /// Before letting go the TCP goes straight down from `world_from_drop`,
+    /// stopping where what the hand holds meets something, at the lowest
+    /// this high over the basket's floor (the bottom of `basket`; m; 0:
+    /// let go at `world_from_drop`; `PickConfig::release_lowest_z_m`).
+    pub release_height_m: f64,
     /// Grasps asked of the planner (the best feasible one is picked).
     pub max_grasps: usize,
     /// Check the fingers against the other detected objects on the approach
@@ -214,6 +219,7 @@ impl Default for BridgeConfig {
                     centre: [0.45, 0.45, 0.05],
                     half_extents_m: [0.15, 0.15, 0.05],
                 },
+                release_height_m: 0.0,
                 max_grasps: 10,
                 check_fingers_near_grasp: pick.check_fingers_near_grasp,
                 check_palm_near_grasp: pick.check_palm_near_grasp,
@@ -331,6 +337,17 @@ impl BridgeConfig {
                 format!("{b:?}: a finite centre and positive half extents needed"),
             ));
         }
+        let h = self.pick.release_height_m;
+        let drop_z = self.pick.world_from_drop.position[2];
+        if !(h.is_finite() && (h == 0.0 || h > 0.0 && self.basket_floor_z() + h < drop_z)) {
+            return Err(bad(
+                "pick.release_height_m",
+                format!(
+                    "{h}: 0 (off) or a height over the basket's floor ({:.3} m) below the drop pose ({drop_z:.3} m)",
+                    self.basket_floor_z()
+                ),
+            ));
+        }
         if !(1..=100).contains(&self.pick.max_grasps) {
             return Err(bad(
                 "pick.max_grasps",
@@ -353,6 +370,8 @@ impl BridgeConfig {
             max_lift_tilt_deg: self.pick.max_lift_tilt_deg,
             approach_clearance_m: self.pick.approach_clearance_m,
             world_from_drop: self.pick.world_from_drop.isometry("pick.world_from_drop")?,
+            release_lowest_z_m: (self.pick.release_height_m > 0.0)
+                .then(|| self.basket_floor_z() + self.pick.release_height_m),
             joint_speed: self.robot.joint_speed,
             joint_accel: self.robot.joint_accel,
             tool_speed: self.robot.tool_speed,
@@ -427,6 +446,11 @@ impl BridgeConfig {
         .map_err(|e| bad("planner", e.to_string()))
     }
 
+    /// The basket's floor: the bottom of its box (world z, m).
+    fn basket_floor_z(&self) -> f64 {
+        self.pick.basket.centre[2] - self.pick.basket.half_extents_m[2]
+    }
+
     /// The basket as an obstacle.
     pub fn basket(&self) -> BoxObstacle {
         let b = &self.pick.basket;
@@ -465,6 +489,8 @@ mod tests {
             ("[pick]\npregrasp_extra_m = 0.6\n", "pick.pregrasp_extra_m"),
             ("[pick]\npregrasp_extra_m = -0.05\n", "pick.pregrasp_extra_m"),
             ("[pick]\nfailed_radius_m = -0.01\n", "pick.failed_radius_m"),
+            ("[pick]\nrelease_height_m = 0.3\n", "pick.release_height_m"),
+            ("[pick]\nrelease_height_m = -0.1\n", "pick.release_height_m"),
             ("[pick]\nfailed_angle_deg = 120.0\n", "pick.failed_angle_deg"),
             (
                 "[pick]\napproach_clearance_m = -0.01\n",

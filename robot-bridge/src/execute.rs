@@ -125,6 +125,15 @@ fn run_chunk(
     let Some(target) = chunk.last().map(final_joints) else {
         return Ok(());
     };
+    // A guarded move ends where the tool meets something: done when the
+    // program is, wherever the arm stopped.
+    let guarded = matches!(
+        chunk.last(),
+        Some(Step::MoveL {
+            until_contact: true,
+            ..
+        })
+    );
     let program = urscript(
         &PickPlan {
             grasp_index,
@@ -165,7 +174,8 @@ fn run_chunk(
         }
         started |= state.runtime_state == 2;
         let arrived = (0..6).all(|i| (state.actual_q[i] - target[i]).abs() < ARRIVED_RAD);
-        if arrived && (started || state.runtime_state == 1) {
+        if arrived && (started || state.runtime_state == 1) || guarded && started && state.runtime_state == 1
+        {
             return Ok(());
         }
         if start.elapsed() > controller.motion_timeout {

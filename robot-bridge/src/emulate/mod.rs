@@ -8,7 +8,9 @@
 //!
 //! Simplifications, stated: `movel` is interpolated in joint space between
 //! its end points (the TCP path is not a straight line here); once the data
-//! stream has started, the RTDE server no longer reads from the client.
+//! stream has started, the RTDE server no longer reads from the client; the
+//! one thing a guarded `movel` (run in a thread watched by `tool_contact`)
+//! can meet is a level surface under the tool (`set_contact_height`).
 
 mod dashboard_server;
 mod gripper_server;
@@ -49,6 +51,9 @@ struct Motion {
     target: Joints,
     /// Speed of the fastest joint (rad/s).
     speed: f64,
+    /// A guarded move (`tool_contact`): it ends where the TCP meets the
+    /// surface set by `Emulator::set_contact_height`.
+    guarded: bool,
 }
 
 /// The emulated robot.
@@ -59,6 +64,9 @@ struct Robot {
     flange_from_tcp: Isometry3<f64>,
     safety_mode: i32,
     motions: std::collections::VecDeque<Motion>,
+    /// A surface under the tool: a guarded move stops where the TCP's z
+    /// (base frame) goes below this.
+    contact_z: Option<f64>,
     started: Instant,
 }
 
@@ -156,6 +164,7 @@ impl Emulator {
                 flange_from_tcp: Isometry3::identity(),
                 safety_mode: 1,
                 motions: Default::default(),
+                contact_z: None,
                 started: Instant::now(),
             }),
             gripper: Mutex::new(GripperSim::default()),
@@ -207,6 +216,13 @@ impl Emulator {
         self.shared.gripper().object_width_m = width_m;
     }
 
+    /// A surface under the tool at `z_m` (the TCP's z in the base frame):
+    /// a guarded move (the bridge's descent before the release, watched by
+    /// `tool_contact`) stops where it reaches it; `None`: nothing there.
+    pub fn set_contact_height(&self, z_m: Option<f64>) {
+        self.shared.robot().contact_z = z_m;
+    }
+
     /// The fault switches.
     pub fn faults(&self) -> &Faults {
         &self.shared.faults
@@ -249,6 +265,13 @@ fn spawn_servo(shared: Arc<Shared>) -> JoinHandle<()> {
                 if robot.safety_mode != 1 {
                     robot.motions.clear();
                 } else if let Some(motion) = robot.motions.front().copied() {
+                    let touching =
+                        motion.guarded && robot.contact_z.is_some_and(|z| robot.tcp_pose()[2] <= z);
+                    if touching {
+                        // The program's tool contact check stops the line here.
+                        robot.motions.pop_front();
+                        continue;
+                    }
                     let remaining: Vec<f64> = (0..6).map(|i| motion.target[i] - robot.q[i]).collect();
                     let largest = remaining.iter().fold(0.0f64, |m, r| m.max(r.abs()));
                     let step = motion.speed * dt;

@@ -1,4 +1,5 @@
-//! The emulator's script receiver: runs `set_tcp`, `movej`, `movel` and `stopj`.
+//! The emulator's script receiver: runs `set_tcp`, `movej`, `movel` (guarded
+//! in the bridge's `mvgrasp_line` thread) and `stopj`.
 
 use std::io::Read;
 use std::net::TcpStream;
@@ -27,7 +28,14 @@ pub(super) fn serve(mut stream: TcpStream, shared: &Shared) {
         return; // a stopped controller runs nothing
     }
     let mut last = robot.motions.back().map_or(robot.q, |m| m.target);
+    // A `movel` in the bridge's guarded-line thread stops on tool contact.
+    let mut guarded = false;
     for line in program.lines().map(str::trim) {
+        if line.starts_with("thread mvgrasp_line(") {
+            guarded = true;
+        } else if line == "end" {
+            guarded = false;
+        }
         if line.starts_with("stopj(") {
             // A new program replaces the running one: this one stops the arm.
             robot.motions.clear();
@@ -41,6 +49,7 @@ pub(super) fn serve(mut stream: TcpStream, shared: &Shared) {
                 robot.motions.push_back(Motion {
                     target,
                     speed: speed.max(1e-3),
+                    guarded: false,
                 });
                 last = target;
             }
@@ -60,6 +69,7 @@ pub(super) fn serve(mut stream: TcpStream, shared: &Shared) {
             robot.motions.push_back(Motion {
                 target,
                 speed: (largest / seconds).max(1e-3),
+                guarded,
             });
             last = target;
         }

@@ -1,6 +1,8 @@
 //! Grasp -> pick motion: pre-grasp, linear approach, close, lift, carry to
-//! the basket, release, retreat; every waypoint solved by IK from the one
-//! before, and the linear segments checked for continuity.
+//! the basket, lower into it until what the hand holds meets something
+//! (`PickConfig::release_lowest_z_m`), release, retreat; every waypoint
+//! solved by IK from the one before, and the linear segments checked for
+//! continuity.
 //!
 //! A grasp arrives as `world_from_grasp` in mvgrasp's grasp frame (origin
 //! between the fingertips, +z the approach, +x the closing direction). The
@@ -129,6 +131,13 @@ pub struct PickConfig {
     pub max_lift_tilt_deg: f64,
     /// TCP pose above the basket where the object is released (world).
     pub world_from_drop: Isometry3<f64>,
+    /// Lower the object into the basket before letting go: from
+    /// `world_from_drop` the TCP goes straight down towards this height
+    /// (world z, m) in a guarded move, which the controller stops where
+    /// what the hand holds meets something (its tool contact), so a tall
+    /// object is set down rather than dropped and toppled over the wall.
+    /// None: let go at `world_from_drop`.
+    pub release_lowest_z_m: Option<f64>,
     /// Joint speed (rad/s) and acceleration (rad/s^2) for joint moves.
     pub joint_speed: f64,
     /// See `joint_speed`.
@@ -186,6 +195,7 @@ impl Default for PickConfig {
                 Translation3::new(0.0, -0.45, 0.35),
                 UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
             ),
+            release_lowest_z_m: None,
             // Conservative: well under the UR5e's limits.
             joint_speed: 0.6,
             joint_accel: 0.8,
@@ -234,6 +244,10 @@ pub enum Step {
         /// The joints every centimetre along the line as planned and
         /// checked, ending at `joints`.
         path: Vec<Joints>,
+        /// A guarded move: it ends early where the tool meets something
+        /// (the controller's tool contact), short of `joints`.
+        #[serde(skip_serializing_if = "std::ops::Not::not")]
+        until_contact: bool,
     },
     /// Close the gripper (expecting an object) or open it to `width_m`.
     Gripper {

@@ -1,6 +1,7 @@
 //! Planning one pick: for each ranked grasp, both half turns about its
 //! approach, the pre-grasp, the linear approach and lift, the pose over the
-//! basket and the joint moves between them, the cheaper feasible one kept.
+//! basket, the guarded descent into it and the joint moves between them,
+//! the cheaper feasible one kept.
 
 use std::f64::consts::PI;
 
@@ -45,17 +46,19 @@ pub fn plan_pick(
             .clone()
             .with_fingers_against_detected(config.check_fingers_near_grasp)
             .with_palm_against_detected(config.check_palm_near_grasp);
+        let arm_alone = world.clone().without_hand();
         // From the pre-grasp the planner vetted, on the arm branch nearest
         // the current joints, first; other branches and further back only
         // where no pick works from there.
         let widen = config.pregrasp_any_branch || config.pregrasp_extra_m > 0.0;
-        let planned = plan_one(arm, config, [&world, &near], grasp, current, false).or_else(|e| match e {
-            // The first reason stands: why the preferred pick fails.
-            Error::Unreachable(_) if widen => {
-                plan_one(arm, config, [&world, &near], grasp, current, true).map_err(|_| e)
-            }
-            e => Err(e),
-        });
+        let planned =
+            plan_one(arm, config, [&world, &near, &arm_alone], grasp, current, false).or_else(|e| match e {
+                // The first reason stands: why the preferred pick fails.
+                Error::Unreachable(_) if widen => {
+                    plan_one(arm, config, [&world, &near, &arm_alone], grasp, current, true).map_err(|_| e)
+                }
+                e => Err(e),
+            });
         match planned {
             Ok(steps) => {
                 return Ok(PickPlan {
@@ -71,13 +74,14 @@ pub fn plan_pick(
 }
 
 /// The pick of one grasp; `near` is `world` as the approach and the lift
-/// check it. The pre-grasp at `pregrasp_m` on the arm branch nearest
-/// `current` only, or with `widen` also on the other branches
-/// (`pregrasp_any_branch`) and further back (`pregrasp_extra_m`).
+/// check it, `arm_alone` as the descent into the basket does. The
+/// pre-grasp at `pregrasp_m` on the arm branch nearest `current` only, or
+/// with `widen` also on the other branches (`pregrasp_any_branch`) and
+/// further back (`pregrasp_extra_m`).
 fn plan_one(
     arm: &Ur5e,
     config: &PickConfig,
-    [world, near]: [&CollisionWorld; 2],
+    [world, near, arm_alone]: [&CollisionWorld; 3],
     grasp: &GraspTarget,
     current: &Joints,
     widen: bool,
@@ -216,7 +220,7 @@ fn plan_one(
         // Over the basket the tool's turn about the vertical does not matter:
         // per quarter turn the nearest arm branch (shoulder, elbow, wrist)
         // that is free of collisions, then the nearest quarter turn.
-        let Some(q_drop) = [0.0, PI / 2.0, PI, -PI / 2.0]
+        let Some((q_drop, drop)) = [0.0, PI / 2.0, PI, -PI / 2.0]
             .iter()
             .filter_map(|yaw| {
                 let drop = config.world_from_drop * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), *yaw);
@@ -224,12 +228,33 @@ fn plan_one(
                     .ok()?
                     .into_iter()
                     .find(|q| world.collision(arm, q).is_none())
+                    .map(|q| (q, drop))
             })
-            .min_by(|a, b| max_joint_move(&q_lift, a).total_cmp(&max_joint_move(&q_lift, b)))
+            .min_by(|(a, _), (b, _)| max_joint_move(&q_lift, a).total_cmp(&max_joint_move(&q_lift, b)))
         else {
             reason = "no collision-free pose over the basket".to_owned();
             continue;
         };
+        // Straight down before letting go, the hand unchecked against the
+        // basket (the move stops on contact); where the arm cannot go
+        // straight down, the object is let go over the basket as it is.
+        let lowered = config
+            .release_lowest_z_m
+            .filter(|z| *z < drop.translation.z - LINEAR_STEP_M)
+            .and_then(|z| {
+                let p = drop.translation.vector;
+                let low = Isometry3::from_parts(Translation3::new(p.x, p.y, z), drop.rotation);
+                let (q_low, path) = linear(
+                    arm,
+                    config,
+                    arm_alone,
+                    &flange_for(&drop),
+                    &flange_for(&low),
+                    &q_drop,
+                )
+                .ok()?;
+                Some((low, q_low, path))
+            });
         // Joint moves: straight if free, else around obstacles (RRT-Connect).
         let (Some(to_pre), Some(to_drop), Some(back)) = (
             joint_path(current, &q_pre),
@@ -262,6 +287,7 @@ fn plan_one(
             base_from_tcp: base_from_world * world_from_tcp,
             joints: q_grasp,
             path: approach_path,
+            until_contact: false,
         });
         steps.push(Step::Gripper {
             name: "close",
@@ -273,13 +299,35 @@ fn plan_one(
             base_from_tcp: base_from_world * lift,
             joints: q_lift,
             path: lift_path,
+            until_contact: false,
         });
         steps.extend(via(&to_drop, "over the basket"));
+        if let Some((low, q_low, path)) = &lowered {
+            steps.push(Step::MoveL {
+                name: "lower",
+                base_from_tcp: base_from_world * low,
+                joints: *q_low,
+                path: path.clone(),
+                until_contact: true,
+            });
+        }
         steps.push(Step::Gripper {
             name: "release",
             close: false,
             width_m: 0.14,
         });
+        if let Some((_, _, path)) = &lowered {
+            // Back up from wherever the descent stopped.
+            let mut up: Vec<Joints> = path.iter().rev().skip(1).copied().collect();
+            up.push(q_drop);
+            steps.push(Step::MoveL {
+                name: "raise",
+                base_from_tcp: base_from_world * drop,
+                joints: q_drop,
+                path: up,
+                until_contact: false,
+            });
+        }
         steps.extend(via(&back, "retreat"));
         if best.as_ref().is_none_or(|(c, _)| cost < *c) {
             best = Some((cost, steps));
@@ -454,6 +502,78 @@ pub(crate) mod tests {
         assert_eq!(script.matches("movej(").count(), 3);
         assert_eq!(script.matches("movel(").count(), 2);
         assert!(script.ends_with("end\n"));
+    }
+
+    /// With `release_lowest_z_m` the object is lowered straight down from
+    /// the pose over the basket in a guarded move before the release, and
+    /// the hand backs up to that pose before the retreat.
+    #[test]
+    fn a_release_height_lowers_the_object_in_a_guarded_move_first() {
+        let arm = Ur5e::default();
+        let names = |plan: &PickPlan| -> Vec<&'static str> {
+            plan.steps
+                .iter()
+                .map(|s| match s {
+                    Step::MoveJ { name, .. } | Step::MoveL { name, .. } | Step::Gripper { name, .. } => *name,
+                })
+                .collect()
+        };
+        let grasp = top_grasp(0.1, -0.45, 0.05);
+        let config = PickConfig {
+            release_lowest_z_m: Some(0.12),
+            ..PickConfig::default()
+        };
+        let plan = plan_pick(&arm, &config, &[grasp], &[], &HOME).unwrap();
+        let tail = names(&plan).split_off(5);
+        assert_eq!(tail, ["over the basket", "lower", "release", "raise", "retreat"]);
+        let q_drop = move_to(&plan, "over the basket");
+        let tcp = |q: &Joints| config.world_from_base * arm.forward(q) * config.flange_from_tcp;
+        let drop = tcp(&q_drop);
+        let (
+            Step::MoveL {
+                joints: q_low,
+                path: down,
+                until_contact: true,
+                ..
+            },
+            Step::MoveL {
+                joints: q_up,
+                path: up,
+                until_contact: false,
+                ..
+            },
+        ) = (&plan.steps[6], &plan.steps[8])
+        else {
+            panic!("a guarded lower, then a raise: {:?}", &plan.steps[6..9])
+        };
+        // Straight down from the drop pose to 12 cm, the tool pointing down.
+        assert!((tcp(q_low).translation.z - 0.12).abs() < 1e-6);
+        for q in down {
+            let p = tcp(q);
+            let off = p.translation.vector - drop.translation.vector;
+            assert!(off.x.hypot(off.y) < 1e-6, "{off:?}");
+            assert!(p.rotation.angle_to(&drop.rotation) < 1e-6);
+        }
+        assert_eq!(down.len(), 23, "1 cm samples over 23 cm");
+        assert_eq!(*q_up, q_drop);
+        assert_eq!(up.last(), Some(&q_drop));
+        assert_eq!(up.len(), down.len());
+        let script = urscript(&plan, &config);
+        assert_eq!(script.matches("tool_contact(").count(), 1);
+        assert_eq!(script.matches("movel(").count(), 4);
+        assert!(script.contains("thread mvgrasp_line():\n    movel(p[0.000000, -0.450000, 0.120000"));
+        // Off, or a height not below the drop pose: let go up there, as before.
+        for lowest in [None, Some(0.345), Some(0.5)] {
+            let config = PickConfig {
+                release_lowest_z_m: lowest,
+                ..PickConfig::default()
+            };
+            let plan = plan_pick(&arm, &config, &[grasp], &[], &HOME).unwrap();
+            assert_eq!(
+                names(&plan).split_off(5),
+                ["over the basket", "release", "retreat"]
+            );
+        }
     }
 
     /// The fingers open the grasp's width plus `approach_clearance_m`,

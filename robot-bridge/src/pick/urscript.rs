@@ -20,12 +20,40 @@ pub fn urscript(plan: &PickPlan, config: &PickConfig) -> String {
                 config.joint_speed
             )),
             Step::MoveL {
-                name, base_from_tcp, ..
+                name,
+                base_from_tcp,
+                until_contact: false,
+                ..
             } => out.push_str(&format!(
                 "  # {name}\n  movel({}, a={:.3}, v={:.3})\n",
                 pose_literal(base_from_tcp),
                 config.tool_accel,
                 config.tool_speed
+            )),
+            // The line runs in a thread while the program watches the tool's
+            // contact detection along the motion, and stops the arm there.
+            Step::MoveL {
+                name,
+                base_from_tcp,
+                until_contact: true,
+                ..
+            } => out.push_str(&format!(
+                "  # {name}, until the tool meets something\n\
+                 \x20 global mvgrasp_line_done = False\n\
+                 \x20 thread mvgrasp_line():\n\
+                 \x20   movel({}, a={:.3}, v={:.3})\n\
+                 \x20   mvgrasp_line_done = True\n\
+                 \x20 end\n\
+                 \x20 mvgrasp_line_thread = run mvgrasp_line()\n\
+                 \x20 while not mvgrasp_line_done and tool_contact(direction=get_target_tcp_speed()) == 0:\n\
+                 \x20   sync()\n\
+                 \x20 end\n\
+                 \x20 kill mvgrasp_line_thread\n\
+                 \x20 stopl({:.3})\n",
+                pose_literal(base_from_tcp),
+                config.tool_accel,
+                config.tool_speed,
+                config.tool_accel
             )),
             Step::Gripper { name, close, width_m } => {
                 let action = if *close {

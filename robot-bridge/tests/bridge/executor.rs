@@ -39,6 +39,78 @@ fn a_pick_with_an_object_is_placed() {
     assert!(at(&q, joints), "{q:?} vs {joints:?}");
 }
 
+/// The descent before the release is a guarded move: with a surface under
+/// the tool it ends there (the chunk is done when the program is), the
+/// object is let go and the pick goes on; with none it runs to its end.
+#[test]
+fn the_descent_into_the_basket_stops_on_contact() {
+    let (plan, config) = fast_pick(PickConfig {
+        release_lowest_z_m: Some(0.1),
+        ..PickConfig::default()
+    });
+    assert!(plan.steps.iter().any(|s| matches!(
+        s,
+        Step::MoveL {
+            until_contact: true,
+            ..
+        }
+    )));
+    let over = plan
+        .steps
+        .iter()
+        .find_map(|s| match s {
+            Step::MoveJ {
+                name: "over the basket",
+                joints,
+            } => Some(*joints),
+            _ => None,
+        })
+        .expect("over the basket");
+    for surface in [Some(0.25), None] {
+        let emu = emulator();
+        emu.set_object_width(Some(0.05));
+        emu.set_contact_height(surface);
+        let mut c = controller(&emu);
+        let arm = Ur5e::default();
+        let (outcome, lowest) = std::thread::scope(|s| {
+            let watch = s.spawn(|| {
+                // The TCP's lowest point from over the basket until back there.
+                let tcp_z = |q: &Joints| (arm.forward(q) * config.flange_from_tcp).translation.z;
+                let start = Instant::now();
+                let waiting = |arrived: bool| !arrived && start.elapsed() < Duration::from_secs(10);
+                while waiting(at(&emu.joints(), &over)) {
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+                let mut lowest = f64::INFINITY;
+                let mut left = false;
+                while waiting(left && at(&emu.joints(), &over)) {
+                    let q = emu.joints();
+                    left |= !at(&q, &over);
+                    lowest = lowest.min(tcp_z(&q));
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+                lowest
+            });
+            let outcome = execute_pick(&mut c, &plan, &config).expect("pick");
+            (outcome, watch.join().unwrap())
+        });
+        assert!(matches!(outcome, PickOutcome::Placed { .. }), "{outcome:?}");
+        assert!(at(&emu.joints(), &final_joints(&plan)), "retreated");
+        match surface {
+            Some(z) => assert!((lowest - z).abs() < 0.01, "stopped at {lowest} on {z}"),
+            None => assert!((lowest - 0.1).abs() < 0.005, "went down to {lowest}"),
+        }
+    }
+}
+
+/// The joints a plan ends at.
+fn final_joints(plan: &robot_bridge::pick::PickPlan) -> Joints {
+    match plan.steps.last() {
+        Some(Step::MoveJ { joints, .. }) => *joints,
+        other => panic!("{other:?}"),
+    }
+}
+
 #[test]
 fn an_empty_grasp_stops_at_the_object() {
     let emu = emulator();

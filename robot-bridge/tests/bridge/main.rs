@@ -40,6 +40,11 @@ fn wait_for(
 /// A top-down grasp in front of the robot, planned with fast moves so the
 /// tests are short (the default configuration is conservative).
 fn fast_pick_plan() -> (robot_bridge::pick::PickPlan, PickConfig) {
+    fast_pick(PickConfig::default())
+}
+
+/// `fast_pick_plan` from `settings` (its speeds replaced).
+fn fast_pick(settings: PickConfig) -> (robot_bridge::pick::PickPlan, PickConfig) {
     let grasp = GraspTarget {
         world_from_grasp: Isometry3::from_parts(
             Translation3::new(0.1, -0.45, 0.05),
@@ -52,7 +57,7 @@ fn fast_pick_plan() -> (robot_bridge::pick::PickPlan, PickConfig) {
     let config = PickConfig {
         joint_speed: 3.0,
         tool_speed: 0.5,
-        ..PickConfig::default()
+        ..settings
     };
     (
         plan_pick(&Ur5e::default(), &config, &[grasp], &[], &HOME).expect("plan"),
