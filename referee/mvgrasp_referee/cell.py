@@ -396,8 +396,8 @@ def height_span(cell, index):
 def bin_top(cell):
     """The highest point (z, m) of the objects lying in the bin (0 when none),
     a little high (`height_span`)."""
-    return max([height_span(cell, i)[1] for i in range(len(cell.object_body_ids))
-                if in_bin(cell.object_pose(i)[0])], default=0.0)
+    return max([0.0] + [height_span(cell, i)[1] for i in range(len(cell.object_body_ids))
+                        if in_bin(cell.object_pose(i)[0])])
 
 
 def in_bin(position):

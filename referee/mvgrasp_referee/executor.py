@@ -4,12 +4,13 @@ Joint moves are interpolated in time (a smooth profile at `JOINT_SPEED`) and
 sent as targets to the arm's joint servos each step; straight moves run
 through the bridge's own 1 cm IK samples at `TOOL_SPEED`; a guarded one
 (the descent into the bin before the release) stops at the first contact
-of the hand or what it holds with the cell or what lay in the bin. The gripper opens
-to the step's width, closes until the fingers stall, the object is lifted
-(the bridge's 15 cm), shaken, carried over the bin, lowered into it where
-the bridge asks, and released. After the release, and after a failed attempt once the hand has opened, the arm is
-put back at its park pose (not simulated: `park`); a released object is
-judged where it comes to rest.
+of the hand or what it holds with the cell or what lay in the bin. The
+gripper opens to the step's width, closes until the fingers stall, the
+object is lifted (the bridge's 15 cm), shaken, carried over the bin,
+lowered into it where the bridge asks, and released. After the release,
+and after a failed attempt once the hand has opened, the arm is put back
+at its park pose (not simulated: `park`); a released object is judged
+where it comes to rest.
 
 Outcomes: `success` (the object is in the bin, on its floor or on what
 lies in it), `empty` (the fingers closed
@@ -220,7 +221,7 @@ def execute(cell, plan_steps, target, gap_table, close_speed_m_s=CLOSE_SPEED_M_S
     the pads moving at `close_speed_m_s`, and returns (outcome, details)."""
     run = Run(cell, target, close_speed_m_s=close_speed_m_s)
     start_z = {i: cell.object_pose(i)[0][2] for i in range(len(cell.bodies))}
-    in_bin = [i for i in range(len(cell.bodies)) if cellmod.in_bin(cell.object_pose(i)[0])]
+    lay_in_bin = [i for i in range(len(cell.bodies)) if cellmod.in_bin(cell.object_pose(i)[0])]
     closed = False
     lifted = False
     picked = None
@@ -259,7 +260,7 @@ def execute(cell, plan_steps, target, gap_table, close_speed_m_s=CLOSE_SPEED_M_S
         elif kind == "movel" and step.get("until_contact"):
             run.phase = "lower"
             if not run.move_path(step["path"], LINEAR_STEP_M * len(step["path"]),
-                                 stop=lambda: run.hand_meets_something(picked, in_bin)):
+                                 stop=lambda: run.hand_meets_something(picked, lay_in_bin)):
                 return "timeout", _details(run, picked)
         elif kind == "movel":
             run.phase = "approach" if not closed else "lift"

@@ -452,20 +452,23 @@ pub(crate) mod tests {
         assert!((tcp_z(&config) - (0.05 - 0.00625)).abs() < 1e-6);
     }
 
+    /// What each step of `plan` is for, in order.
+    fn step_names(plan: &PickPlan) -> Vec<&'static str> {
+        plan.steps
+            .iter()
+            .map(|s| match s {
+                Step::MoveJ { name, .. } | Step::MoveL { name, .. } | Step::Gripper { name, .. } => *name,
+            })
+            .collect()
+    }
+
     #[test]
     fn reachable_grasp_gives_the_full_sequence_and_poses_match_fk() {
         let arm = Ur5e::default();
         let config = PickConfig::default();
         let plan = plan_pick(&arm, &config, &[top_grasp(0.1, -0.45, 0.05)], &[], &HOME).unwrap();
-        let names: Vec<&str> = plan
-            .steps
-            .iter()
-            .map(|s| match s {
-                Step::MoveJ { name, .. } | Step::MoveL { name, .. } | Step::Gripper { name, .. } => *name,
-            })
-            .collect();
         assert_eq!(
-            names,
+            step_names(&plan),
             [
                 "open before approach",
                 "pre-grasp",
@@ -510,21 +513,13 @@ pub(crate) mod tests {
     #[test]
     fn a_release_height_lowers_the_object_in_a_guarded_move_first() {
         let arm = Ur5e::default();
-        let names = |plan: &PickPlan| -> Vec<&'static str> {
-            plan.steps
-                .iter()
-                .map(|s| match s {
-                    Step::MoveJ { name, .. } | Step::MoveL { name, .. } | Step::Gripper { name, .. } => *name,
-                })
-                .collect()
-        };
         let grasp = top_grasp(0.1, -0.45, 0.05);
         let config = PickConfig {
             release_lowest_z_m: Some(0.12),
             ..PickConfig::default()
         };
         let plan = plan_pick(&arm, &config, &[grasp], &[], &HOME).unwrap();
-        let tail = names(&plan).split_off(5);
+        let tail = step_names(&plan).split_off(5);
         assert_eq!(tail, ["over the basket", "lower", "release", "raise", "retreat"]);
         let q_drop = move_to(&plan, "over the basket");
         let tcp = |q: &Joints| config.world_from_base * arm.forward(q) * config.flange_from_tcp;
@@ -570,7 +565,7 @@ pub(crate) mod tests {
             };
             let plan = plan_pick(&arm, &config, &[grasp], &[], &HOME).unwrap();
             assert_eq!(
-                names(&plan).split_off(5),
+                step_names(&plan).split_off(5),
                 ["over the basket", "release", "retreat"]
             );
         }

@@ -16,6 +16,15 @@ fn controller(emu: &Emulator) -> Controller {
     }
 }
 
+/// An emulator whose gripper closes on an object `object_width_m` wide
+/// (`None`: nothing there), and a controller connected to it.
+fn emulated(object_width_m: Option<f64>) -> (Emulator, Controller) {
+    let emu = emulator();
+    emu.set_object_width(object_width_m);
+    let c = controller(&emu);
+    (emu, c)
+}
+
 /// The arm at `joints` (within 1e-3 rad each).
 fn at(q: &Joints, joints: &Joints) -> bool {
     (0..6).all(|i| (q[i] - joints[i]).abs() < 1e-3)
@@ -23,20 +32,15 @@ fn at(q: &Joints, joints: &Joints) -> bool {
 
 #[test]
 fn a_pick_with_an_object_is_placed() {
-    let emu = emulator();
-    emu.set_object_width(Some(0.05));
-    let mut c = controller(&emu);
+    let (emu, mut c) = emulated(Some(0.05));
     let (plan, config) = fast_pick_plan();
     let outcome = execute_pick(&mut c, &plan, &config).expect("pick");
     let PickOutcome::Placed { held_width_m } = outcome else {
         panic!("{outcome:?}")
     };
     assert!((held_width_m - 0.05).abs() < 0.002, "{held_width_m}");
-    let Some(Step::MoveJ { joints, .. }) = plan.steps.last() else {
-        panic!("retreat")
-    };
-    let q = emu.joints();
-    assert!(at(&q, joints), "{q:?} vs {joints:?}");
+    let (q, retreat) = (emu.joints(), final_joints(&plan));
+    assert!(at(&q, &retreat), "{q:?} vs {retreat:?}");
 }
 
 /// The descent before the release is a guarded move: with a surface under
@@ -67,10 +71,8 @@ fn the_descent_into_the_basket_stops_on_contact() {
         })
         .expect("over the basket");
     for surface in [Some(0.25), None] {
-        let emu = emulator();
-        emu.set_object_width(Some(0.05));
+        let (emu, mut c) = emulated(Some(0.05));
         emu.set_contact_height(surface);
-        let mut c = controller(&emu);
         let arm = Ur5e::default();
         let (outcome, lowest) = std::thread::scope(|s| {
             let watch = s.spawn(|| {
@@ -113,9 +115,7 @@ fn final_joints(plan: &robot_bridge::pick::PickPlan) -> Joints {
 
 #[test]
 fn an_empty_grasp_stops_at_the_object() {
-    let emu = emulator();
-    emu.set_object_width(None);
-    let mut c = controller(&emu);
+    let (emu, mut c) = emulated(None);
     let (plan, config) = fast_pick_plan();
     assert_eq!(
         execute_pick(&mut c, &plan, &config).expect("pick"),
@@ -133,9 +133,7 @@ fn an_empty_grasp_stops_at_the_object() {
 
 #[test]
 fn an_object_lost_on_the_way_is_not_let_go_of_over_the_basket() {
-    let emu = emulator();
-    emu.set_object_width(Some(0.05));
-    let mut c = controller(&emu);
+    let (emu, mut c) = emulated(Some(0.05));
     let (plan, config) = fast_pick_plan();
     let Step::MoveL { joints: at_grasp, .. } = plan.steps[2].clone() else {
         panic!("approach")
