@@ -12,9 +12,9 @@ SUITES = {
     # scenario -> episodes per camera and pool ("*": any pool not named)
     "oracle": {"isolated": {"*": 40, "test-b": 45}},
     "quick": {"isolated": {"*": 3}, "packed": {"test-b": 1, "train": 1}, "pile": {"test-a": 1, "train": 1}},
-    "tune": {"isolated": {"*": 40}, "packed": {"*": 6}, "pile": {"*": 6}},
-    "standard": {"isolated": {"*": 60}, "packed": {"*": 10}, "pile": {"*": 10}},
-    "full": {"isolated": {"*": 200, "test-b": 90}, "packed": {"*": 25}, "pile": {"*": 25}},
+    "tune": {"isolated": {"*": 40}, "packed": {"*": 6}, "pile": {"*": 6}, "clutter": {"*": 6}},
+    "standard": {"isolated": {"*": 60}, "packed": {"*": 10}, "pile": {"*": 10}, "clutter": {"*": 10}},
+    "full": {"isolated": {"*": 200, "test-b": 90}, "packed": {"*": 25}, "pile": {"*": 25}, "clutter": {"*": 25}},
 }
 
 
@@ -26,7 +26,8 @@ def parse(argv):
     p.add_argument("--camera", default="topdown", help="topdown, angled, random or all (topdown,angled,random)")
     p.add_argument("--pools", default="test-a,test-b",
                    help="pools to run (train only for tuning; test-a, test-b only to report a chosen candidate)")
-    p.add_argument("--scenarios", default="isolated,packed,pile")
+    p.add_argument("--scenarios", default="isolated,packed,pile",
+                   help="isolated, packed, pile (the default) and clutter (ten objects, asked by name)")
     p.add_argument("--policy", default="default", help="view policy asked of the planner "
                    "(default: the server's; entropy, all, top-down, random)")
     p.add_argument("--min-quality", type=float, default=None, help="tau asked of the planner (default: the server's)")

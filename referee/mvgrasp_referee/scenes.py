@@ -5,7 +5,10 @@
 - `packed`: five objects standing close (upright as their mesh stands,
   2-3 cm apart, turned at random);
 - `pile`: five objects dropped from random orientations into a 16 cm box,
-  settled, then the box is taken away.
+  settled, then the box is taken away;
+- `clutter`: heavy clutter, ten objects dropped from random orientations
+  over a 22 cm box (each above whatever it would overlap), settled, then
+  the box is taken away. Not in the default `--scenarios`.
 """
 
 import math
@@ -17,8 +20,10 @@ from . import cell as cellmod
 from . import objects as objmod
 from . import pools
 
-SCENARIOS = {"isolated": (1, 3), "packed": (5, 4), "pile": (5, 4)}  # objects, consecutive failures allowed
+SCENARIOS = {"isolated": (1, 3), "packed": (5, 4), "pile": (5, 4), "clutter": (10, 4)}  # objects, consecutive failures allowed
 SETTLE_S = 1.5
+CLUTTER_HALF_M = 0.11  # the box the clutter is dropped into (inner half width)
+CLUTTER_SETTLE_S = 3.0  # ten objects from up to about a metre
 
 
 def random_quat(rng):
@@ -86,7 +91,25 @@ def placements(scenario, bodies, rng):
             xy = rng.uniform(-0.04, 0.04, 2)
             out.append(((xy[0], xy[1], z), random_quat(rng)))
         return out
+    if scenario == "clutter":
+        # Bounding spheres never overlap at the start: each object goes above
+        # every placed one whose footprint its own would meet.
+        out, placed = [], []
+        for b in bodies:
+            r = 0.5 * float(np.linalg.norm(b.extents_m))
+            xy = rng.uniform(-CLUTTER_HALF_M + 0.03, CLUTTER_HALF_M - 0.03, 2)
+            z = max([pz + pr for pxy, pz, pr in placed if np.linalg.norm(xy - pxy) < r + pr], default=0.0) + r + 0.01
+            placed.append((xy, z, r))
+            out.append(((xy[0], xy[1], z), random_quat(rng)))
+        return out
     raise ValueError(f"unknown scenario {scenario!r} (one of {', '.join(SCENARIOS)})")
+
+
+def _walls(half, h):
+    """Four walls of a box `2 half` wide inside, `2 h` high, around the origin."""
+    return [(f"pile_wall{k}", size, centre) for k, (size, centre) in enumerate([
+        ((0.005, half, h), (half + 0.005, 0, h)), ((0.005, half, h), (-half - 0.005, 0, h)),
+        ((half, 0.005, h), (0, half + 0.005, h)), ((half, 0.005, h), (0, -half - 0.005, h))])]
 
 
 def make(scenario, pool_name, seed, episode):
@@ -95,14 +118,9 @@ def make(scenario, pool_name, seed, episode):
     rng = np.random.default_rng([seed, episode, 11])
     bodies = [objmod.make_body(s, rng) for s in specs]
     where = placements(scenario, bodies, rng)
-    fixtures = []
-    if scenario == "pile":
-        half, h = 0.08, 0.3
-        fixtures = [(f"pile_wall{k}", size, centre) for k, (size, centre) in enumerate([
-            ((0.005, half, h), (half + 0.005, 0, h)), ((0.005, half, h), (-half - 0.005, 0, h)),
-            ((half, 0.005, h), (0, half + 0.005, h)), ((half, 0.005, h), (0, -half - 0.005, h))])]
+    fixtures = {"pile": _walls(0.08, 0.3), "clutter": _walls(CLUTTER_HALF_M, 0.4)}.get(scenario, [])
     cell = cellmod.build(bodies, where, fixtures=fixtures)
-    settle(cell)
+    settle(cell, CLUTTER_SETTLE_S if scenario == "clutter" else SETTLE_S)
     if fixtures:
         # Take the box away: rebuild without it, objects where they came to rest.
         rest = [cell.object_pose(i) for i in range(len(bodies))]

@@ -59,18 +59,40 @@ class SplitTest(unittest.TestCase):
         self.assertEqual(packed, ["random_296", "random_228", "random_382", "random_795", "random_289"])
         drawn = 0
         for pool in ("train", "test-a"):
-            for scenario in ("isolated", "packed", "pile"):
+            for scenario in ("isolated", "packed", "pile", "clutter"):
                 for seed in range(2026, 2032):
                     for episode in range(60):
                         names = [o.name for o in scenes.choose_objects(pool, scenario, seed, episode)]
                         self.assertFalse(pools.TOO_THIN & set(names), (pool, scenario, seed, episode))
                         self.assertEqual(len(set(names)), len(names), (pool, scenario, seed, episode))
                         drawn += len(names)
-        self.assertEqual(drawn, 2 * 6 * 60 * (1 + 5 + 5))
+        self.assertEqual(drawn, 2 * 6 * 60 * (1 + 5 + 5 + 10))
 
     def test_an_unknown_pool_is_refused(self):
         with self.assertRaisesRegex(ValueError, "unknown pool"):
             pools.pool("test-c")
+
+
+class ClutterTest(unittest.TestCase):
+    def test_heavy_clutter_starts_apart_and_settles_into_a_heap_on_the_table(self):
+        specs = scenes.choose_objects("train", "clutter", 2026, 0)
+        self.assertEqual(len({s.name for s in specs}), 10)
+        rng = np.random.default_rng(5)
+        bodies = [objects.make_body(s, rng) for s in specs]
+        where = scenes.placements("clutter", bodies, rng)
+        radius = [0.5 * float(np.linalg.norm(b.extents_m)) for b in bodies]
+        for i in range(10):
+            for j in range(i):
+                gap = np.linalg.norm(np.subtract(where[i][0], where[j][0])) - radius[i] - radius[j]
+                self.assertGreater(gap, 0.0, (i, j))
+        self.assertGreater(max(p[2] for p, _ in where), 0.3)  # stacked, not spread out
+        c, _ = scenes.make("clutter", "train", 2026, 0)
+        self.assertEqual([i for i in range(10) if scenes.on_table(c, i)], list(range(10)))
+        bodies_ids = set(c.object_body_ids)
+        touching = {tuple(sorted((c.model.geom_bodyid[k.geom1], c.model.geom_bodyid[k.geom2])))
+                    for k in c.data.contact[:c.data.ncon]}
+        on_each_other = [p for p in touching if p[0] in bodies_ids and p[1] in bodies_ids and p[0] != p[1]]
+        self.assertGreaterEqual(len(on_each_other), 3, "a heap: objects resting on one another")
 
 
 class StatsTest(unittest.TestCase):
