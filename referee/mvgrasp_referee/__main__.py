@@ -25,7 +25,8 @@ def parse(argv):
     p.add_argument("--suite", choices=SUITES, default="quick")
     p.add_argument("--camera", default="topdown", help="topdown, angled, random or all (topdown,angled,random)")
     p.add_argument("--pools", default="test-a,test-b",
-                   help="pools to run (train only for tuning; test-a, test-b only to report a chosen candidate)")
+                   help="pools to run (train, or train-large: its meshes at household sizes, only for tuning; "
+                        "test-a, test-b only to report a chosen candidate)")
     p.add_argument("--scenarios", default="isolated,packed,pile",
                    help="isolated, packed, pile (the default) and clutter (ten objects, asked by name)")
     p.add_argument("--policy", default="default", help="view policy asked of the planner "
@@ -150,8 +151,8 @@ def main(argv=None):
     if args.attempt_views is not None:
         if args.oracle:
             raise SystemExit("referee: --attempt-views records the planner's grasps, not the oracle's")
-        if any(name != "train" for name in args.pools.split(",")):
-            raise SystemExit("referee: --attempt-views records training data: --pools train only")
+        if any(name not in pools.TRAIN_POOLS for name in args.pools.split(",")):
+            raise SystemExit("referee: --attempt-views records training data: --pools train or train-large only")
     if args.bridge is None:
         args.bridge = os.path.join(assets.ROOT, "target", "release", "robot-bridge")
     from . import cell  # noqa: PLC0415

@@ -10,6 +10,7 @@ part, a tool's head: half their mass in a small sphere near one end of the
 longest axis, inside the object. The planner cannot see it.
 """
 
+import dataclasses
 import hashlib
 import os
 import tempfile
@@ -95,6 +96,10 @@ def _decompose(vertices, faces):
 
 def load(spec):
     """The mesh at its size, centred, and its convex parts (cached)."""
+    if spec.resize_m > 0:
+        vertices, faces, parts = load(dataclasses.replace(spec, resize_m=0.0))
+        k = spec.resize_m / np.ptp(vertices, axis=0).max()
+        return vertices * k, faces, [p * k for p in parts]
     key = hashlib.sha256(repr((spec.name, spec.source, spec.path, spec.scale, spec.max_extent_m,
                                sorted(spec.extra.items()), sorted(COACD.items()))).encode()).hexdigest()[:16]
     cached = os.path.join(CACHE, f"{spec.name}-{key}.npz")

@@ -3,6 +3,9 @@
 - `train`: `pybullet_data/random_urdfs/000`-`799`. Only this pool (with our
   procedural families and sample meshes) may feed `sim datagen`, training
   or tuning of any planner setting.
+- `train-large`: the same meshes scaled to household sizes (longest side
+  10-22 cm, fixed per mesh; heavier with their volume): on the train side,
+  for what the URDF's sizes never show. Not a pool of its own meshes.
 - `test-a`: `random_urdfs/800`-`999`, at the URDF's scale.
 - `test-b`: household shapes at realistic sizes (4-25 cm): robosuite's
   objects and pybullet_data's named meshes.
@@ -36,13 +39,23 @@ class ObjectSpec:
     path: str  # relative to its asset folder
     scale: float = 1.0  # mesh units -> metres, before `max_extent_m`
     max_extent_m: float = 0.0  # if > 0, the longest side is scaled to this
+    resize_m: float = 0.0  # if > 0, the object as loaded without it, scaled about its centre to this longest side
     extra: dict = field(default_factory=dict, compare=False, hash=False)
 
 
-def random_urdf(index):
-    """`random_urdfs/NNN`, at the URDF's mesh scale (0.015)."""
+def random_urdf(index, resize_m=0.0):
+    """`random_urdfs/NNN`, at the URDF's mesh scale (0.015), or resized."""
     n = f"{index:03d}"
-    return ObjectSpec(f"random_{n}", "random_urdf", f"random_urdfs/{n}/{n}.obj", scale=0.015)
+    return ObjectSpec(f"random_{n}", "random_urdf", f"random_urdfs/{n}/{n}.obj", scale=0.015, resize_m=resize_m)
+
+
+LARGE_M = (0.10, 0.22)
+
+
+def large_size(index):
+    """`train-large`'s longest side for mesh `index`: spread evenly over
+    `LARGE_M` by the golden ratio, the same in every run."""
+    return round(LARGE_M[0] + (LARGE_M[1] - LARGE_M[0]) * ((index * 0.6180339887) % 1.0), 4)
 
 
 # Household shapes: longest side in metres (real objects of that kind).
@@ -66,11 +79,14 @@ HOUSEHOLD = (
 
 POOLS = {
     "train": tuple(random_urdf(i) for i in TRAIN_RANDOM),
+    "train-large": tuple(random_urdf(i, large_size(i)) for i in TRAIN_RANDOM),
     "test-a": tuple(random_urdf(i) for i in TEST_A_RANDOM),
     "test-b": HOUSEHOLD,
 }
 
 TEST_POOLS = ("test-a", "test-b")
+TRAIN_POOLS = ("train", "train-large")  # what may be trained or tuned on
+RESIZED = {"train-large": "train"}  # pools of another pool's meshes, resized
 
 
 def pool(name):
@@ -84,6 +100,11 @@ def check_split():
     """Raises if a mesh is in two pools or a random_urdf is in none."""
     seen = {}
     for name, objects in POOLS.items():
+        if name in RESIZED:
+            base = {o.path for o in POOLS[RESIZED[name]]}
+            if any(o.path not in base or o.resize_m <= 0 for o in objects):
+                raise AssertionError(f"{name} holds a mesh that is not {RESIZED[name]}'s, resized")
+            continue
         for o in objects:
             if o.path in seen:
                 raise AssertionError(f"{o.path} is in both {seen[o.path]} and {name}")

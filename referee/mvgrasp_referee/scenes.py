@@ -20,7 +20,8 @@ from . import cell as cellmod
 from . import objects as objmod
 from . import pools
 
-SCENARIOS = {"isolated": (1, 3), "packed": (5, 4), "pile": (5, 4), "clutter": (10, 4)}  # objects, consecutive failures allowed
+# objects, consecutive failures allowed
+SCENARIOS = {"isolated": (1, 3), "packed": (5, 4), "pile": (5, 4), "clutter": (10, 4)}
 SETTLE_S = 1.5
 CLUTTER_HALF_M = 0.11  # the box the clutter is dropped into (inner half width)
 CLUTTER_SETTLE_S = 3.0  # ten objects from up to about a metre

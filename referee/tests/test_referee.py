@@ -68,6 +68,23 @@ class SplitTest(unittest.TestCase):
                         drawn += len(names)
         self.assertEqual(drawn, 2 * 6 * 60 * (1 + 5 + 5 + 10))
 
+    def test_train_large_is_the_train_meshes_at_household_sizes(self):
+        train, large = pools.pool("train"), pools.pool("train-large")
+        self.assertEqual([o.path for o in large], [o.path for o in train])
+        sizes = [o.resize_m for o in large]
+        self.assertTrue(all(pools.LARGE_M[0] <= m < pools.LARGE_M[1] for m in sizes))
+        self.assertGreater(min(sizes[:20]), 0.0)
+        # Spread over the range, not bunched: every 2 cm band holds a sixth of them, give or take.
+        bands = np.histogram(sizes, bins=6, range=pools.LARGE_M)[0]
+        self.assertTrue(all(100 < b < 170 for b in bands), bands)
+        small, big = (objects.make_body(pool[7], np.random.default_rng(3)) for pool in (train, large))
+        self.assertAlmostEqual(float(np.max(big.extents_m)), large[7].resize_m, places=6)
+        k = large[7].resize_m / float(np.max(small.extents_m))
+        np.testing.assert_allclose(big.vertices, small.vertices * k, atol=1e-9)
+        self.assertEqual(len(big.parts), len(small.parts))
+        self.assertAlmostEqual(big.mass_kg / small.mass_kg, k**3, places=6)
+        self.assertTrue(pools.check_split())
+
     def test_an_unknown_pool_is_refused(self):
         with self.assertRaisesRegex(ValueError, "unknown pool"):
             pools.pool("test-c")
