@@ -10,7 +10,7 @@
 # (the script adds every lib folder of the `nvidia` Python packages, if present).
 #
 #   ORT_GPU_DIR=/tmp/ortgpu OUT=/tmp/out SERVER=target/release/mvgrasp-server \
-#     CLIENT=target/release/mvgrasp bash scripts/gpu-service-bench.sh [SECONDS]
+#     CLIENT=target/release/mvgrasp [RUNS=FILE] bash scripts/gpu-service-bench.sh [SECONDS]
 #
 # Each setting: a fresh server (its CUDA warm-up line goes to stdout), then
 # `mvgrasp bench --json` per client count (appended to $OUT/bench.jsonl,
@@ -31,13 +31,16 @@ ORT=$ORT_GPU_DIR/libonnxruntime.so.1.31.1
 SCENE=(--depth samples/table6/depth.png --camera samples/table6/camera.json)
 echo "model $MODEL; $(nproc) cores; $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null)"
 port=50600
-run() { # label device max_batch_views conv_search clients...
-    local label=$1 dev=$2 mb=$3 search=$4
-    shift 4
+cpu_s() { # a process's user + system CPU seconds so far
+    awk -v hz="$(getconf CLK_TCK)" '{ print ($14 + $15) / hz }' "/proc/$1/stat"
+}
+run() { # label device max_batch_views conv_search sessions clients...
+    local label=$1 dev=$2 mb=$3 search=$4 sessions=$5
+    shift 5
     port=$((port + 2))
     RUST_LOG=info NO_COLOR=1 "$S" --config deploy/server.toml --listen 127.0.0.1:$port \
         --metrics-listen 127.0.0.1:$((port + 1)) --model "$MODEL" --onnxruntime "$ORT" --device "$dev" \
-        --intra-threads 2 --max-batch-views "$mb" --max-wait-ms 2 --cuda-conv-search "$search" \
+        --intra-threads 2 --max-batch-views "$mb" --max-wait-ms 2 --cuda-conv-search "$search" --sessions "$sessions" \
         >"$OUT/server-$label.log" 2>&1 &
     local pid=$!
     for _ in $(seq 900); do
@@ -47,15 +50,32 @@ run() { # label device max_batch_views conv_search clients...
     done
     sed 's/\x1b\[[0-9;]*m//g' "$OUT/server-$label.log" | grep -oE "(CUDA|WARN|ERROR).*" | head -3
     for clients in "$@"; do
-        local report
-        report=$("$C" --server http://127.0.0.1:$port bench "${SCENE[@]}" --warmup 20 --json \
-            --concurrency "$clients" --duration-s "$seconds")
-        echo "{\"label\": \"$label\", \"clients\": $clients, \"report\": $report}" | tee -a "$OUT/bench.jsonl"
+        local report before client
+        before=$(cpu_s "$pid")
+        # The client's CPU seconds (bash's `time`: user + system) beside the server's.
+        client=$( { TIMEFORMAT='%U %S'; time "$C" --server http://127.0.0.1:$port bench "${SCENE[@]}" --warmup 20 \
+            --json --concurrency "$clients" --duration-s "$seconds" >"$OUT/report.json"; } 2>&1 | awk '{ print $1 + $2 }')
+        report=$(cat "$OUT/report.json")
+        echo "{\"label\": \"$label\", \"clients\": $clients, \"server_cpu_s\": $(awk -v a="$(cpu_s "$pid")" -v b="$before" 'BEGIN { print a - b }'), \"client_cpu_s\": $client, \"report\": $report}" | tee -a "$OUT/bench.jsonl"
     done
+    rm -f "$OUT/report.json"
     python3 -c "import urllib.request as u; print(u.urlopen('http://127.0.0.1:$((port + 1))/metrics').read().decode())" \
         | grep -E "^mvgrasp_stage_duration_seconds_(sum|count)" >"$OUT/stages-$label.txt"
     kill "$pid"; wait "$pid" 2>/dev/null
 }
-run cuda-b64 cuda 64 exhaustive 1 16 64 256
-run cuda-b16 cuda 16 exhaustive 16 64 256
-run cpu cpu 32 exhaustive 1 16 64
+dmon=
+command -v nvidia-smi >/dev/null && { nvidia-smi dmon -s u -d 1 >"$OUT/dmon.txt" 2>&1 & dmon=$!; }
+# label device max_batch_views conv_search sessions clients...; RUNS=FILE: one such line each
+if [[ -n "${RUNS:-}" ]]; then
+    while read -r line; do
+        [[ -z "$line" || "$line" == \#* ]] || run $line
+    done <"$RUNS"
+else
+    run cuda-b64-s1 cuda 64 exhaustive 1 1 16 64 256
+    run cuda-b64-s2 cuda 64 exhaustive 2 1 16 64 256
+    run cuda-b64-s4 cuda 64 exhaustive 4 16 64 256
+    run cuda-b32-s2 cuda 32 exhaustive 2 16 64 256
+    run cuda-b32-s4 cuda 32 exhaustive 4 16 64 256
+    run cpu cpu 32 exhaustive 1 1 16 64
+fi
+[ -n "$dmon" ] && kill "$dmon"

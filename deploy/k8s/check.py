@@ -104,7 +104,8 @@ def wiring(overlay, objects):
     check(f"{overlay}: the pods mount the generated ConfigMap", mounted == [config["metadata"]["name"]])
     gpus = container["resources"].get("limits", {}).get("nvidia.com/gpu")
     if overlay == "gpu":
-        check("gpu: one GPU per pod, the CUDA device", gpus == "1" and env.get("MVGRASP_DEVICE") == "cuda")
+        check("gpu: one GPU per pod, the CUDA device, two sessions",
+              gpus == "1" and env.get("MVGRASP_DEVICE") == "cuda" and env.get("MVGRASP_SESSIONS") == "2")
     else:
         check(f"{overlay}: no GPU asked for", gpus is None and "MVGRASP_DEVICE" not in env)
     metric = hpa["spec"]["metrics"][0]

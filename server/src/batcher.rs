@@ -1,8 +1,11 @@
 //! Dynamic batching: views of concurrent requests share network calls.
 //!
-//! One worker thread owns the network. It takes the oldest queued request,
-//! then keeps adding queued requests until the batch holds `max_batch_views`
-//! views or the oldest has waited `max_wait`. It waits only while other
+//! One worker thread owns each session of the network (`model.sessions`).
+//! The worker whose turn it is takes the oldest queued request, then keeps
+//! adding queued requests until the batch holds `max_batch_views` views or
+//! the oldest has waited `max_wait`; it then runs that batch while the next
+//! worker gathers the next one (on a GPU: one batch copied and handed out
+//! while another runs). It waits only while other
 //! requests are still in their CPU stages (about to submit views): a lone
 //! request never pays `max_wait`. A request's views are never split across
 //! calls. Requests whose caller has gone, or whose deadline has
@@ -16,7 +19,7 @@
 
 use std::{
     sync::{
-        Arc,
+        Arc, Mutex, PoisonError,
         atomic::{AtomicUsize, Ordering},
         mpsc::{self, RecvTimeoutError, TryRecvError},
     },
@@ -69,31 +72,41 @@ impl std::fmt::Debug for Batcher {
 }
 
 impl Batcher {
-    /// Starts the worker thread that owns `net` (and `lone`, for a call
-    /// that has the server to itself). It stops when every `Batcher` is dropped.
+    /// Starts one worker thread per session in `nets` (at least one), and
+    /// keeps `lone` for a call that has the server to itself. The workers
+    /// stop when every `Batcher` is dropped.
     pub fn spawn(
-        net: Box<dyn GraspNet + Send>,
+        nets: Vec<Box<dyn GraspNet + Send>>,
         lone: Option<Box<dyn GraspNet + Send>>,
         limits: BatchLimits,
         metrics: Arc<Metrics>,
     ) -> Result<Self> {
+        if nets.is_empty() {
+            return Err(Error::Startup("no network session to run batches on".into()));
+        }
         let (tx, rx) = mpsc::channel();
         let queued_views = Arc::new(AtomicUsize::new(0));
         let preparing = Arc::new(AtomicUsize::new(0));
-        let worker = Worker {
-            net,
-            lone,
+        let intake = Arc::new(Mutex::new(Intake {
             jobs: rx,
             carried: None,
-            queued_views: Arc::clone(&queued_views),
-            preparing: Arc::clone(&preparing),
-            limits,
-            metrics: Arc::clone(&metrics),
-        };
-        std::thread::Builder::new()
-            .name("mvgrasp-inference".into())
-            .spawn(move || worker.run())
-            .map_err(|e| Error::Startup(format!("inference thread: {e}")))?;
+        }));
+        let lone = Arc::new(Mutex::new(lone));
+        for (k, net) in nets.into_iter().enumerate() {
+            let worker = Worker {
+                net,
+                lone: Arc::clone(&lone),
+                intake: Arc::clone(&intake),
+                queued_views: Arc::clone(&queued_views),
+                preparing: Arc::clone(&preparing),
+                limits,
+                metrics: Arc::clone(&metrics),
+            };
+            std::thread::Builder::new()
+                .name(format!("mvgrasp-inference-{k}"))
+                .spawn(move || worker.run())
+                .map_err(|e| Error::Startup(format!("inference thread: {e}")))?;
+        }
         Ok(Self {
             jobs: tx,
             queued_views,
@@ -159,12 +172,18 @@ impl Drop for Preparing {
     }
 }
 
-struct Worker {
-    net: Box<dyn GraspNet + Send>,
-    lone: Option<Box<dyn GraspNet + Send>>,
+/// The queue the workers take their batches from, one worker at a time.
+struct Intake {
     jobs: mpsc::Receiver<Job>,
     /// A job that did not fit the previous batch.
     carried: Option<Job>,
+}
+
+struct Worker {
+    net: Box<dyn GraspNet + Send>,
+    /// Shared by the workers; used only by a call alone in the server.
+    lone: Arc<Mutex<Option<Box<dyn GraspNet + Send>>>>,
+    intake: Arc<Mutex<Intake>>,
     queued_views: Arc<AtomicUsize>,
     preparing: Arc<AtomicUsize>,
     limits: BatchLimits,
@@ -174,41 +193,52 @@ struct Worker {
 impl Worker {
     fn run(mut self) {
         loop {
-            let first = match self.carried.take() {
-                Some(job) => job,
-                None => match self.jobs.recv() {
-                    Ok(job) => job,
-                    Err(_) => return, // every Batcher is gone
-                },
-            };
-            let close_at = first.enqueued + self.limits.max_wait;
-            let mut views = first.batch.len;
-            let mut jobs = vec![first];
-            while views < self.limits.max_batch_views {
-                let job = match self.jobs.try_recv() {
-                    Ok(job) => job,
-                    Err(TryRecvError::Disconnected) => break,
-                    Err(TryRecvError::Empty) => {
-                        let wait = close_at.saturating_duration_since(Instant::now());
-                        if wait.is_zero() || self.preparing.load(Ordering::SeqCst) == 0 {
-                            break;
-                        }
-                        match self.jobs.recv_timeout(wait.min(POLL)) {
-                            Ok(job) => job,
-                            Err(RecvTimeoutError::Timeout) => continue,
-                            Err(RecvTimeoutError::Disconnected) => break,
-                        }
-                    }
-                };
-                if views + job.batch.len > self.limits.max_batch_views {
-                    self.carried = Some(job);
-                    break;
+            // Gather under the intake's lock, run outside it: the next worker
+            // gathers while this one runs.
+            let jobs = {
+                let mut intake = self.intake.lock().unwrap_or_else(PoisonError::into_inner);
+                match self.gather(&mut intake) {
+                    Some(jobs) => jobs,
+                    None => return, // every Batcher is gone
                 }
-                views += job.batch.len;
-                jobs.push(job);
-            }
+            };
             self.run_batch(jobs);
         }
+    }
+
+    /// The next batch's jobs; `None` once every `Batcher` is gone.
+    fn gather(&self, intake: &mut Intake) -> Option<Vec<Job>> {
+        let first = match intake.carried.take() {
+            Some(job) => job,
+            None => intake.jobs.recv().ok()?,
+        };
+        let close_at = first.enqueued + self.limits.max_wait;
+        let mut views = first.batch.len;
+        let mut jobs = vec![first];
+        while views < self.limits.max_batch_views {
+            let job = match intake.jobs.try_recv() {
+                Ok(job) => job,
+                Err(TryRecvError::Disconnected) => break,
+                Err(TryRecvError::Empty) => {
+                    let wait = close_at.saturating_duration_since(Instant::now());
+                    if wait.is_zero() || self.preparing.load(Ordering::SeqCst) == 0 {
+                        break;
+                    }
+                    match intake.jobs.recv_timeout(wait.min(POLL)) {
+                        Ok(job) => job,
+                        Err(RecvTimeoutError::Timeout) => continue,
+                        Err(RecvTimeoutError::Disconnected) => break,
+                    }
+                }
+            };
+            if views + job.batch.len > self.limits.max_batch_views {
+                intake.carried = Some(job);
+                break;
+            }
+            views += job.batch.len;
+            jobs.push(job);
+        }
+        Some(jobs)
     }
 
     fn run_batch(&mut self, jobs: Vec<Job>) {
@@ -251,16 +281,22 @@ impl Worker {
         self.metrics.batch_views.observe(total as f64);
         self.metrics.batch_requests.observe(live.len() as f64);
         let alone = live.len() == 1 && self.metrics.in_flight.get() <= 1;
-        let net = match &mut self.lone {
-            Some(lone) if alone => {
-                self.metrics.lone_network_calls.inc();
-                lone
-            }
-            _ => &mut self.net,
+        let run = |net: &mut (dyn GraspNet + Send)| {
+            net.infer(&batch)
+                .and_then(|maps| maps.check_matches(&batch).map(|()| maps))
         };
-        let result = net
-            .infer(&batch)
-            .and_then(|maps| maps.check_matches(&batch).map(|()| maps));
+        // Held only while the lone network runs, so that other workers' batches do not wait.
+        let mut lone = alone
+            .then(|| self.lone.lock().unwrap_or_else(PoisonError::into_inner))
+            .filter(|held| held.is_some());
+        let result = match lone.as_mut().and_then(|held| held.as_mut()) {
+            Some(net) => {
+                self.metrics.lone_network_calls.inc();
+                run(net.as_mut())
+            }
+            None => run(self.net.as_mut()),
+        };
+        drop(lone);
         self.release(total);
         let per_view = 4 * size_px * size_px;
         let mut offset = 0;
@@ -328,6 +364,23 @@ mod tests {
         b
     }
 
+    /// Six concurrent requests of two views each; each gets the maps the
+    /// network gives its views alone.
+    async fn six_requests_get_their_own_maps(batcher: &Batcher) {
+        let mut tasks = Vec::new();
+        for k in 0..6 {
+            let b = batcher.clone();
+            tasks.push(tokio::spawn(async move {
+                let batch = views(2, k as f32 * 0.05);
+                let (maps, _) = b.infer(batch.clone(), None).await.unwrap();
+                assert_eq!(maps, MomentsNet::default().infer(&batch).unwrap(), "request {k}");
+            }));
+        }
+        for t in tasks {
+            t.await.unwrap();
+        }
+    }
+
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn concurrent_requests_share_calls_and_get_their_own_maps() {
         let calls = Arc::new(Mutex::new(Vec::new()));
@@ -340,20 +393,14 @@ mod tests {
             max_wait: Duration::from_millis(50),
             max_queued_views: 64,
         };
-        let batcher = Batcher::spawn(Box::new(net), None, limits, Arc::new(Metrics::new().unwrap())).unwrap();
-        let mut tasks = Vec::new();
-        for k in 0..6 {
-            let b = batcher.clone();
-            tasks.push(tokio::spawn(async move {
-                let batch = views(2, k as f32 * 0.05);
-                let (maps, _) = b.infer(batch.clone(), None).await.unwrap();
-                let mut alone = MomentsNet::default();
-                assert_eq!(maps, alone.infer(&batch).unwrap(), "request {k}");
-            }));
-        }
-        for t in tasks {
-            t.await.unwrap();
-        }
+        let batcher = Batcher::spawn(
+            vec![Box::new(net)],
+            None,
+            limits,
+            Arc::new(Metrics::new().unwrap()),
+        )
+        .unwrap();
+        six_requests_get_their_own_maps(&batcher).await;
         let calls = calls.lock().unwrap().clone();
         assert_eq!(calls.iter().sum::<usize>(), 12);
         assert!(calls.iter().all(|&n| n <= 8), "{calls:?}");
@@ -381,7 +428,7 @@ mod tests {
             max_queued_views: 64,
         };
         let metrics = Arc::new(Metrics::new().unwrap());
-        let batcher = Batcher::spawn(busy, Some(lone), limits, Arc::clone(&metrics)).unwrap();
+        let batcher = Batcher::spawn(vec![busy], Some(lone), limits, Arc::clone(&metrics)).unwrap();
         // The service counts its calls in flight; this one is alone.
         metrics.in_flight.set(1);
         let batch = views(3, 0.0);
@@ -413,6 +460,69 @@ mod tests {
         assert_eq!(metrics.lone_network_calls.get(), 1);
     }
 
+    /// Counts the calls running at once; each waits (up to 5 s) until
+    /// `company` calls run together, so that overlap does not hang on timing.
+    struct Overlapping {
+        inner: MomentsNet,
+        running: Arc<AtomicUsize>,
+        most: Arc<AtomicUsize>,
+        company: usize,
+    }
+
+    impl GraspNet for Overlapping {
+        fn contract(&self) -> &ModelContract {
+            self.inner.contract()
+        }
+        fn infer(&mut self, batch: &ViewBatch) -> mvgrasp_core::Result<GraspMaps> {
+            let now = self.running.fetch_add(1, Ordering::SeqCst) + 1;
+            self.most.fetch_max(now, Ordering::SeqCst);
+            let give_up = Instant::now() + Duration::from_secs(5);
+            while self.most.load(Ordering::SeqCst) < self.company && Instant::now() < give_up {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            self.running.fetch_sub(1, Ordering::SeqCst);
+            self.inner.infer(batch)
+        }
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn sessions_run_batches_at_once_and_answer_every_request() {
+        for sessions in [1, 2, 3] {
+            let (running, most) = (Arc::new(AtomicUsize::new(0)), Arc::new(AtomicUsize::new(0)));
+            let nets = (0..sessions)
+                .map(|_| {
+                    Box::new(Overlapping {
+                        inner: MomentsNet::default(),
+                        running: Arc::clone(&running),
+                        most: Arc::clone(&most),
+                        company: sessions,
+                    }) as Box<dyn GraspNet + Send>
+                })
+                .collect();
+            let limits = BatchLimits {
+                max_batch_views: 2,
+                max_wait: Duration::ZERO,
+                max_queued_views: 64,
+            };
+            let batcher = Batcher::spawn(nets, None, limits, Arc::new(Metrics::new().unwrap())).unwrap();
+            six_requests_get_their_own_maps(&batcher).await;
+            // Each call waits for the others of its round: all sessions at once, never more.
+            assert_eq!(most.load(Ordering::SeqCst), sessions, "{sessions} sessions");
+            assert_eq!(batcher.queued_views.load(Ordering::SeqCst), 0);
+        }
+        let none = Batcher::spawn(
+            Vec::new(),
+            None,
+            BatchLimits {
+                max_batch_views: 2,
+                max_wait: Duration::ZERO,
+                max_queued_views: 2,
+            },
+            Arc::new(Metrics::new().unwrap()),
+        );
+        assert!(none.is_err());
+    }
+
     #[tokio::test]
     async fn expired_and_oversized_work_is_refused() {
         let limits = BatchLimits {
@@ -422,7 +532,7 @@ mod tests {
         };
         let metrics = Arc::new(Metrics::new().unwrap());
         let batcher = Batcher::spawn(
-            Box::new(MomentsNet::default()),
+            vec![Box::new(MomentsNet::default())],
             None,
             limits,
             Arc::clone(&metrics),

@@ -62,7 +62,8 @@ impl PlannerState {
         };
         metrics.queued_views_limit.set(limits.max_queued_views as i64);
         metrics.in_flight_limit.set(settings.limits.max_in_flight as i64);
-        let batcher = Batcher::spawn(net.net, net.lone, limits, Arc::clone(&metrics))?;
+        let nets = std::iter::once(net.net).chain(net.more).collect();
+        let batcher = Batcher::spawn(nets, net.lone, limits, Arc::clone(&metrics))?;
         let cpu = Arc::new(Semaphore::new(settings.cpu_workers()));
         Ok(Self {
             planner,

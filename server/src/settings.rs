@@ -63,6 +63,10 @@ pub struct ModelSettings {
     pub spin_wait: bool,
     /// cuDNN's convolution algorithm search (`device = cuda` only).
     pub cuda_conv_search: ConvSearch,
+    /// Sessions of the file, each running its own batches: one gathers the
+    /// next batch while another runs (on a GPU, while one batch's maps are
+    /// copied back and handed out, the next computes).
+    pub sessions: usize,
 }
 
 impl Default for ModelSettings {
@@ -76,6 +80,7 @@ impl Default for ModelSettings {
             lone_call_threads: 2,
             spin_wait: true,
             cuda_conv_search: ConvSearch::Exhaustive,
+            sessions: 1,
         }
     }
 }
@@ -346,6 +351,9 @@ pub struct Overrides {
     /// cuDNN's convolution algorithm search under `--device cuda`.
     #[arg(long, env = "MVGRASP_CUDA_CONV_SEARCH", value_enum)]
     pub cuda_conv_search: Option<ConvSearch>,
+    /// Sessions of the model, each running its own batches.
+    #[arg(long, env = "MVGRASP_SESSIONS")]
+    pub sessions: Option<usize>,
     /// Most views per network call.
     #[arg(long, env = "MVGRASP_MAX_BATCH_VIEWS")]
     pub max_batch_views: Option<usize>,
@@ -425,6 +433,9 @@ impl Settings {
         if let Some(v) = o.cuda_conv_search {
             self.model.cuda_conv_search = v;
         }
+        if let Some(v) = o.sessions {
+            self.model.sessions = v;
+        }
         if let Some(v) = o.max_batch_views {
             self.batching.max_batch_views = v;
         }
@@ -488,6 +499,7 @@ impl Settings {
         for (key, threads) in [
             ("model.intra_threads", self.model.intra_threads),
             ("model.lone_call_threads", self.model.lone_call_threads),
+            ("model.sessions", self.model.sessions),
         ] {
             if !(1..=64).contains(&threads) {
                 return bad(key, format!("{threads} is not in 1..=64"));
@@ -722,5 +734,21 @@ mod tests {
         s.model.lone_call_threads = 0;
         let err = s.validate().unwrap_err().to_string();
         assert!(err.contains("model.lone_call_threads"), "{err}");
+    }
+
+    #[test]
+    fn sessions_are_read_overridden_and_checked() {
+        assert_eq!(Settings::default().model.sessions, 1);
+        let mut s = Settings::from_toml("[model]\nsessions = 3\n").unwrap();
+        assert_eq!(s.model.sessions, 3);
+        s.apply(&Overrides {
+            sessions: Some(2),
+            ..Default::default()
+        });
+        assert_eq!(s.model.sessions, 2);
+        s.validate().unwrap();
+        s.model.sessions = 0;
+        let err = s.validate().unwrap_err().to_string();
+        assert!(err.contains("model.sessions"), "{err}");
     }
 }

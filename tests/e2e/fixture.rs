@@ -91,6 +91,7 @@ pub fn slow_net(delay: Duration) -> LoadedNet {
             inner: MomentsNet::default(),
             delay,
         }),
+        more: Vec::new(),
         lone: None,
         backend: "test-slow",
     }

@@ -244,6 +244,29 @@ async fn concurrent_calls_share_network_batches() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_sessions_answer_concurrent_calls_as_one_does() {
+    let mut s = settings(BackendKind::Onnx);
+    s.model.sessions = 2;
+    s.batching.max_batch_views = 8; // a call's 6 views fill a batch: both sessions get work
+    let (server, client) = start(s).await;
+    let mut lone = client.clone();
+    let expected = lone.plan(frame()).await.unwrap();
+    assert_eq!(expected.objects.len(), 6);
+    let calls: Vec<_> = (0..8)
+        .map(|_| {
+            let mut c = client.clone();
+            tokio::spawn(async move { c.plan(frame()).await })
+        })
+        .collect();
+    for call in calls {
+        let answer = call.await.unwrap().unwrap();
+        assert_eq!(answer.grasps, expected.grasps);
+        assert_eq!(answer.objects.len(), 6);
+    }
+    server.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn shutdown_drains_calls_in_flight() {
     let (server, client) = start_with(
         settings(BackendKind::Baseline),

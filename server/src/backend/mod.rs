@@ -15,6 +15,9 @@ use crate::{
 pub struct LoadedNet {
     /// The network.
     pub net: Box<dyn GraspNet + Send>,
+    /// Further sessions of the same file (`model.sessions` less one), each
+    /// run by its own batching worker.
+    pub more: Vec<Box<dyn GraspNet + Send>>,
     /// The same network with more threads, for a call that has the server
     /// to itself (`model.lone_call_threads`; CPU only).
     pub lone: Option<Box<dyn GraspNet + Send>>,
@@ -27,6 +30,7 @@ impl std::fmt::Debug for LoadedNet {
         f.debug_struct("LoadedNet")
             .field("model_version", &self.net.contract().model_version)
             .field("backend", &self.backend)
+            .field("sessions", &(1 + self.more.len()))
             .field("lone", &self.lone.is_some())
             .finish()
     }
@@ -52,14 +56,21 @@ pub fn load(settings: &ModelSettings, batch_views: usize) -> Result<LoadedNet> {
             } else {
                 None
             };
+            let more = (1..settings.sessions)
+                .map(|_| Ok(Box::new(OnnxNet::load(settings, batch_views)?) as Box<dyn GraspNet + Send>))
+                .collect::<Result<_>>()?;
             Ok(LoadedNet {
                 net: Box::new(net),
+                more,
                 lone,
                 backend,
             })
         }
         BackendKind::Baseline => Ok(LoadedNet {
             net: Box::new(MomentsNet::default()),
+            more: (1..settings.sessions)
+                .map(|_| Box::new(MomentsNet::default()) as Box<dyn GraspNet + Send>)
+                .collect(),
             lone: None,
             backend: "baseline-moments",
         }),
