@@ -67,6 +67,8 @@ struct Robot {
     /// A surface under the tool: a guarded move stops where the TCP's z
     /// (base frame) goes below this.
     contact_z: Option<f64>,
+    /// The TCP's z (base frame) where each guarded move ended.
+    guarded_ends: Vec<f64>,
     started: Instant,
 }
 
@@ -165,6 +167,7 @@ impl Emulator {
                 safety_mode: 1,
                 motions: Default::default(),
                 contact_z: None,
+                guarded_ends: Vec::new(),
                 started: Instant::now(),
             }),
             gripper: Mutex::new(GripperSim::default()),
@@ -223,6 +226,12 @@ impl Emulator {
         self.shared.robot().contact_z = z_m;
     }
 
+    /// The TCP's z (base frame) where each guarded move so far ended, on
+    /// contact or at its target.
+    pub fn guarded_move_ends(&self) -> Vec<f64> {
+        self.shared.robot().guarded_ends.clone()
+    }
+
     /// The fault switches.
     pub fn faults(&self) -> &Faults {
         &self.shared.faults
@@ -270,6 +279,8 @@ fn spawn_servo(shared: Arc<Shared>) -> JoinHandle<()> {
                     if touching {
                         // The program's tool contact check stops the line here.
                         robot.motions.pop_front();
+                        let z = robot.tcp_pose()[2];
+                        robot.guarded_ends.push(z);
                         continue;
                     }
                     let remaining: Vec<f64> = (0..6).map(|i| motion.target[i] - robot.q[i]).collect();
@@ -278,6 +289,10 @@ fn spawn_servo(shared: Arc<Shared>) -> JoinHandle<()> {
                     if largest <= step {
                         robot.q = motion.target;
                         robot.motions.pop_front();
+                        if motion.guarded {
+                            let z = robot.tcp_pose()[2];
+                            robot.guarded_ends.push(z);
+                        }
                     } else {
                         for (q, r) in robot.q.iter_mut().zip(&remaining) {
                             *q += r * step / largest;

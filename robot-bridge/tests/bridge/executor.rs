@@ -59,48 +59,18 @@ fn the_descent_into_the_basket_stops_on_contact() {
             ..
         }
     )));
-    let over = plan
-        .steps
-        .iter()
-        .find_map(|s| match s {
-            Step::MoveJ {
-                name: "over the basket",
-                joints,
-            } => Some(*joints),
-            _ => None,
-        })
-        .expect("over the basket");
     for surface in [Some(0.25), None] {
         let (emu, mut c) = emulated(Some(0.05));
         emu.set_contact_height(surface);
-        let arm = Ur5e::default();
-        let (outcome, lowest) = std::thread::scope(|s| {
-            let watch = s.spawn(|| {
-                // The TCP's lowest point from over the basket until back there.
-                let tcp_z = |q: &Joints| (arm.forward(q) * config.flange_from_tcp).translation.z;
-                let start = Instant::now();
-                let waiting = |arrived: bool| !arrived && start.elapsed() < Duration::from_secs(10);
-                while waiting(at(&emu.joints(), &over)) {
-                    std::thread::sleep(Duration::from_millis(1));
-                }
-                let mut lowest = f64::INFINITY;
-                let mut left = false;
-                while waiting(left && at(&emu.joints(), &over)) {
-                    let q = emu.joints();
-                    left |= !at(&q, &over);
-                    lowest = lowest.min(tcp_z(&q));
-                    std::thread::sleep(Duration::from_millis(1));
-                }
-                lowest
-            });
-            let outcome = execute_pick(&mut c, &plan, &config).expect("pick");
-            (outcome, watch.join().unwrap())
-        });
+        let outcome = execute_pick(&mut c, &plan, &config).expect("pick");
         assert!(matches!(outcome, PickOutcome::Placed { .. }), "{outcome:?}");
         assert!(at(&emu.joints(), &final_joints(&plan)), "retreated");
+        // The one guarded move (the descent), where the emulator ended it.
+        let ends = emu.guarded_move_ends();
+        assert_eq!(ends.len(), 1, "{ends:?}");
         match surface {
-            Some(z) => assert!((lowest - z).abs() < 0.01, "stopped at {lowest} on {z}"),
-            None => assert!((lowest - 0.1).abs() < 0.005, "went down to {lowest}"),
+            Some(z) => assert!((ends[0] - z).abs() < 0.01, "stopped at {} on {z}", ends[0]),
+            None => assert!((ends[0] - 0.1).abs() < 0.005, "went down to {}", ends[0]),
         }
     }
 }
