@@ -52,7 +52,7 @@ def table(base, new):
     lines = ["| scenario | objects | cleared base | cleared new | difference (95%) | better / worse "
              "| success per attempt base | new |",
              "|---|---:|---:|---:|---|---|---:|---:|"]
-    for name in [s for s in ("isolated", "packed", "pile", "clutter") if s in groups] + ["all"]:
+    for name in [s for s in groups if s != "all"] + ["all"]:  # scenarios as the runs hold them
         pairs = groups[name]
         diffs = [cleared(n) - cleared(b) for b, n in pairs]
         lo, hi = bootstrap(diffs)

@@ -3,7 +3,7 @@
 - `isolated`: one object in a random stable pose (dropped from a random
   orientation near the middle of the table and settled);
 - `packed`: five objects standing close (upright as their mesh stands,
-  2-3 cm apart, turned at random);
+  turned at random, outlines 2 cm or more apart);
 - `pile`: five objects dropped from random orientations into a 16 cm box,
   settled, then the box is taken away;
 - `clutter`: heavy clutter, ten objects dropped from random orientations
@@ -11,6 +11,7 @@
   the box is taken away. Not in the default `--scenarios`.
 """
 
+import itertools
 import math
 
 import mujoco
@@ -25,6 +26,9 @@ SCENARIOS = {"isolated": (1, 3), "packed": (5, 4), "pile": (5, 4), "clutter": (1
 SETTLE_S = 1.5
 CLUTTER_HALF_M = 0.11  # the box the clutter is dropped into (inner half width)
 CLUTTER_SETTLE_S = 3.0  # ten objects from up to about a metre
+PACKED_HALF_M = 0.12  # packed objects' centres are drawn from this square (the robot's)
+PACKED_GAP_M = 0.02  # least gap between two packed objects' outlines
+PACKED_GROW_M = 0.02  # the square grows by this after each 100 draws without room
 
 
 def random_quat(rng):
@@ -65,8 +69,68 @@ def _pickable(objects, drawn):
     return out
 
 
-def _radius(body):
-    return 0.5 * float(np.linalg.norm(body.extents_m[:2]))
+def bounding_radius(body):
+    """The radius of the sphere around `body`'s box, about its centre."""
+    return 0.5 * float(np.linalg.norm(body.extents_m))
+
+
+def _hull(points):
+    """The convex hull of 2-D points, counter-clockwise, no repeated corner
+    (Andrew's monotone chain)."""
+    pts = sorted(set(map(tuple, np.round(points, 9))))
+
+    def half(seq):
+        chain = []
+        for p in seq:
+            while len(chain) >= 2 and ((chain[-1][0] - chain[-2][0]) * (p[1] - chain[-2][1])
+                                       - (chain[-1][1] - chain[-2][1]) * (p[0] - chain[-2][0])) <= 0:
+                chain.pop()
+            chain.append(p)
+        return chain[:-1]
+
+    return np.array(half(pts) + half(pts[::-1]) if len(pts) > 2 else pts, float)
+
+
+def _footprint(body, yaw):
+    """The outline on the table of `body` standing as its mesh stands, turned
+    by `yaw`: the convex hull of its collision parts seen from above."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    xy = np.concatenate(body.parts)[:, :2] @ np.array([[c, s], [-s, c]])
+    return _hull(xy)
+
+
+def _apart(a, b, gap):
+    """Whether convex outlines `a` and `b` are `gap` or more apart along an
+    edge normal of either (a separating axis; the true distance is at least that)."""
+    for poly in (a, b):
+        edges = np.roll(poly, -1, axis=0) - poly
+        normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1)
+        normals = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+        pa, pb = a @ normals.T, b @ normals.T
+        if (np.maximum(pb.min(0) - pa.max(0), pa.min(0) - pb.max(0)) >= gap).any():
+            return True
+    return False
+
+
+def _packed(bodies, rng):
+    """Upright objects, each turned at random and put where its outline stays
+    `PACKED_GAP_M` from every one placed before; after every 100 draws that
+    found no room the square drawn from grows by `PACKED_GROW_M` a side, so
+    an object that does not fit lands outside the robot's square (and is
+    not counted) rather than inside another."""
+    out, placed = [], []
+    for b in bodies:
+        yaw = rng.uniform(0, 2 * math.pi)
+        shape = _footprint(b, yaw)
+        for k in itertools.count():
+            half = PACKED_HALF_M + PACKED_GROW_M * (k // 100)
+            xy = rng.uniform(-half, half, 2)
+            if all(_apart(shape + xy, other, PACKED_GAP_M) for other in placed):
+                break
+        placed.append(shape + xy)
+        bottom = min(float(p[:, 2].min()) for p in b.parts)
+        out.append(((xy[0], xy[1], -bottom + 0.005), yaw_quat(yaw)))
+    return out
 
 
 def placements(scenario, bodies, rng):
@@ -75,16 +139,7 @@ def placements(scenario, bodies, rng):
         xy = rng.uniform(-0.05, 0.05, 2)
         return [((xy[0], xy[1], 0.5 * float(np.max(b.extents_m)) + 0.02), random_quat(rng))]
     if scenario == "packed":
-        out, placed = [], []
-        for b in bodies:
-            r = _radius(b)
-            for _ in range(200):
-                xy = rng.uniform(-0.12, 0.12, 2)
-                if all(np.linalg.norm(xy - p) > r + pr + 0.02 for p, pr in placed):
-                    break
-            placed.append((xy, r))
-            out.append(((xy[0], xy[1], 0.5 * float(b.extents_m[2]) + 0.005), yaw_quat(rng.uniform(0, 2 * math.pi))))
-        return out
+        return _packed(bodies, rng)
     if scenario == "pile":
         out, z = [], 0.0
         for b in bodies:
@@ -97,7 +152,7 @@ def placements(scenario, bodies, rng):
         # every placed one whose footprint its own would meet.
         out, placed = [], []
         for b in bodies:
-            r = 0.5 * float(np.linalg.norm(b.extents_m))
+            r = bounding_radius(b)
             xy = rng.uniform(-CLUTTER_HALF_M + 0.03, CLUTTER_HALF_M - 0.03, 2)
             z = max([pz + pr for pxy, pz, pr in placed if np.linalg.norm(xy - pxy) < r + pr], default=0.0) + r + 0.01
             placed.append((xy, z, r))

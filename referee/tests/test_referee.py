@@ -59,7 +59,7 @@ class SplitTest(unittest.TestCase):
         self.assertEqual(packed, ["random_296", "random_228", "random_382", "random_795", "random_289"])
         drawn = 0
         for pool in ("train", "test-a"):
-            for scenario in ("isolated", "packed", "pile", "clutter"):
+            for scenario in scenes.SCENARIOS:
                 for seed in range(2026, 2032):
                     for episode in range(60):
                         names = [o.name for o in scenes.choose_objects(pool, scenario, seed, episode)]
@@ -97,7 +97,7 @@ class ClutterTest(unittest.TestCase):
         rng = np.random.default_rng(5)
         bodies = [objects.make_body(s, rng) for s in specs]
         where = scenes.placements("clutter", bodies, rng)
-        radius = [0.5 * float(np.linalg.norm(b.extents_m)) for b in bodies]
+        radius = [scenes.bounding_radius(b) for b in bodies]
         for i in range(10):
             for j in range(i):
                 gap = np.linalg.norm(np.subtract(where[i][0], where[j][0])) - radius[i] - radius[j]
@@ -110,6 +110,25 @@ class ClutterTest(unittest.TestCase):
                     for k in c.data.contact[:c.data.ncon]}
         on_each_other = [p for p in touching if p[0] in bodies_ids and p[1] in bodies_ids and p[0] != p[1]]
         self.assertGreaterEqual(len(on_each_other), 3, "a heap: objects resting on one another")
+
+
+class PackedTest(unittest.TestCase):
+    def test_packed_objects_start_apart_and_all_stay_on_the_table(self):
+        for pool, episode in (("test-b", 0), ("test-b", 1), ("train", 0)):
+            specs = scenes.choose_objects(pool, "packed", 2026, episode)
+            rng = np.random.default_rng(5)
+            bodies = [objects.make_body(s, rng) for s in specs]
+            where = scenes.placements("packed", bodies, rng)
+            # MuJoCo's own contacts at the start: none between two objects, none into the table.
+            c = cell.build(bodies, where)
+            mujoco.mj_forward(c.model, c.data)
+            ids = set(c.object_body_ids)
+            deep = [(c.model.geom_bodyid[k.geom1], c.model.geom_bodyid[k.geom2], k.dist)
+                    for k in c.data.contact[:c.data.ncon] if k.dist < -1e-4]
+            self.assertEqual([d for d in deep if d[0] in ids or d[1] in ids], [], (pool, episode))
+            self.assertTrue(all(abs(p[0]) < 0.2 and abs(p[1]) < 0.2 for p, _ in where))
+            settled, _ = scenes.make("packed", pool, 2026, episode)
+            self.assertEqual([i for i in range(5) if scenes.on_table(settled, i)], list(range(5)), (pool, episode))
 
 
 class StatsTest(unittest.TestCase):
