@@ -10,7 +10,7 @@
 # (the script adds every lib folder of the `nvidia` Python packages, if present).
 #
 #   ORT_GPU_DIR=/tmp/ortgpu OUT=/tmp/out SERVER=target/release/mvgrasp-server \
-#     CLIENT=target/release/mvgrasp [RUNS=FILE] bash scripts/gpu-service-bench.sh [SECONDS]
+#     CLIENT=target/release/mvgrasp [RUNS=FILE] [BENCH_ARGS="..."] bash scripts/gpu-service-bench.sh [SECONDS]
 #
 # Each setting: a fresh server (its CUDA warm-up line goes to stdout), then
 # `mvgrasp bench --json` per client count (appended to $OUT/bench.jsonl,
@@ -28,7 +28,9 @@ NV=$(python3 -c "import nvidia; print(list(nvidia.__path__)[0])" 2>/dev/null || 
 LIBS=$([ -n "$NV" ] && find "$NV" -name 'lib*.so*' -printf '%h\n' | sort -u | paste -sd: || true)
 export LD_LIBRARY_PATH="$ORT_GPU_DIR${LIBS:+:$LIBS}${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 ORT=$ORT_GPU_DIR/libonnxruntime.so.1.31.1
-SCENE=(--depth samples/table6/depth.png --camera samples/table6/camera.json)
+# BENCH_ARGS: more `mvgrasp bench` request flags, e.g. "--approach-cone 0 0 -1 60" (the robot-bridge's)
+read -r -a extra <<<"${BENCH_ARGS:-}"
+SCENE=(--depth samples/table6/depth.png --camera samples/table6/camera.json "${extra[@]}")
 echo "model $MODEL; $(nproc) cores; $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null)"
 port=50600
 cpu_s() { # a process's user + system CPU seconds so far

@@ -16,14 +16,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 # The sweeps shown (of every run's settings, those that tell the story apart).
 SHOWN = ["2026-11-28: cuda-b64", "2026-11-28: cuda-b16", "2026-11-30 run 1: cuda-b64", "2026-11-30 run 1: cuda-b16",
-         "2026-11-30 run 2: cuda-b64-s1", "2026-11-30 run 2: cuda-b64-s2", "2026-11-30 run 2: cuda-b32-s2"]
+         "2026-11-30 run 2: cuda-b64-s1", "2026-11-30 run 2: cuda-b64-s2", "2026-11-30 run 2: cuda-b32-s2",
+         "2026-11-30 run 4: cone-b32-s2"]
 series = {name: [] for name in SHOWN}
 for path in sorted((ROOT / "results" / "service-gpu").glob("bench-*.jsonl")):
     day = path.stem.removeprefix("bench-")
     for line in path.read_text().splitlines():
         row = json.loads(line)
-        if not row["label"].startswith("cuda"):
-            continue
         name = f"{day} run {row['run']}: {row['label']}" if "run" in row else f"{day}: {row['label']}"
         if name in series:
             series[name].append((row["clients"], row["report"]))
@@ -45,7 +44,7 @@ for ax, title in ((left, "calls/s"), (right, "p99 ms (log)")):
     ax.grid(alpha=0.3)
 right.set_yscale("log")
 left.legend(fontsize=7, loc="upper left")
-fig.suptitle("The service on an H200 (CUDA; sample frame, default request; dashed: c580df3)", fontsize=10)
+fig.suptitle("The service on an H200 (CUDA; sample frame; default request, cone: the bridge's; dashed: c580df3)", fontsize=10)
 fig.tight_layout()
 out = ROOT / "docs" / "service_gpu.png"
 fig.savefig(out, dpi=110)
