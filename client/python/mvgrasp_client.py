@@ -130,6 +130,12 @@ def arm_reach(pb, shoulder, wrist_back_m, approach_m, max_m, min_axis_m, axis=(0
                        wrist_back_m=wrist_back_m, approach_m=approach_m, max_m=max_m, min_axis_m=min_axis_m)
 
 
+def obstacle_region(pb, lo, hi):
+    """A world box whose contents outside the workspace the planner reports
+    as obstacle boxes (`PlanGraspsResponse.obstacles`), not planned."""
+    return pb.Workspace(min=pb.Vector3(x=lo[0], y=lo[1], z=lo[2]), max=pb.Vector3(x=hi[0], y=hi[1], z=hi[2]))
+
+
 # Calls spread round robin over every address the target names; a unary call
 # that meets an unavailable replica (unreachable, gone mid-call, shutting
 # down) is sent up to twice more, and round robin sends it to the next
@@ -240,6 +246,8 @@ def main():
     parser.add_argument("--timeout-s", type=float, default=10.0)
     parser.add_argument("--approach-cone", type=float, nargs=4, metavar=("AX", "AY", "AZ", "HALF_DEG"),
                         help="only approaches within this cone, e.g. 0 0 -1 60 (from above within 60 degrees)")
+    parser.add_argument("--obstacle-region", type=float, nargs=6, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
+                        help="report what stands inside this world box but outside the workspace as obstacles")
     parser.add_argument("--no-view-cascade", action="store_true",
                         help="the paper's single pass over the policy's views")
     parser.add_argument("--tls-ca", help="PEM CA that signed the planner's certificate: call over TLS")
@@ -265,6 +273,8 @@ def main():
         options = {"max_grasps": args.max_grasps}
         if args.approach_cone:
             options["approach_cone"] = approach_cone(pb, args.approach_cone[:3], args.approach_cone[3])
+        if args.obstacle_region:
+            options["obstacle_region"] = obstacle_region(pb, args.obstacle_region[:3], args.obstacle_region[3:])
         if args.no_view_cascade:
             options["view_cascade"] = False
         request = plan_request(pb, args.depth, args.camera, **options)
@@ -276,6 +286,9 @@ def main():
         p, a = g.pose.position, approach(g.pose.orientation)
         print(f"{rank:>3} object {g.object_id} q {g.quality:.3f} width {g.width_m * 1e3:.1f} mm "
               f"at ({p.x:.3f}, {p.y:.3f}, {p.z:.3f}) approach ({a[0]:+.2f}, {a[1]:+.2f}, {a[2]:+.2f})")
+    for o in response.obstacles:
+        print(f"obstacle x {o.min.x:.3f}..{o.max.x:.3f} y {o.min.y:.3f}..{o.max.y:.3f} "
+              f"z {o.min.z:.3f}..{o.max.z:.3f} ({o.point_count} points)")
     return 0 if math.isfinite(response.timings.total_ms) else 1
 
 

@@ -211,6 +211,20 @@ def main():
                   for g in coned_response.grasps),
               str([mvgrasp_client.approach(g.pose.orientation) for g in coned_response.grasps]))
 
+        # The right half of the table as the workspace, the whole table as
+        # the obstacle region: what stands on the left half comes back as
+        # boxes, none reaching into the workspace past its 1 cm margin.
+        halved = mvgrasp_client.plan_request(
+            pb, os.path.join(ROOT, "samples/table6/depth.png"), os.path.join(ROOT, "samples/table6/camera.json"),
+            obstacle_region=mvgrasp_client.obstacle_region(pb, (-0.6, -0.4, -0.05), (0.6, 0.4, 0.4)))
+        halved.workspace.min.x = 0.0
+        halved_response = planner.PlanGrasps(halved, timeout=30)
+        boxes = [(o.min.x, o.max.x, o.max.z) for o in halved_response.obstacles]
+        check("objects outside the workspace come back as obstacle boxes",
+              0 < len(halved_response.objects) < 6 and boxes and all(hi_x <= 0.0101 and top > 0.01
+                                                                      for _, hi_x, top in boxes),
+              f"{len(halved_response.objects)} objects, boxes {boxes}")
+
         def reached(shoulder, max_m, min_axis_m):
             request = mvgrasp_client.plan_request(
                 pb, os.path.join(ROOT, "samples/table6/depth.png"), os.path.join(ROOT, "samples/table6/camera.json"),

@@ -111,6 +111,15 @@ struct SceneArgs {
         value_names = ["SX", "SY", "SZ", "WRIST_BACK_M", "APPROACH_M", "MAX_M", "MIN_AXIS_M"]
     )]
     arm_reach: Option<Vec<f64>>,
+    /// Report what stands on the table inside this world box but outside
+    /// the workspace as obstacle boxes (not planned): min x y z, max x y z (m).
+    #[arg(
+        long,
+        num_args = 6,
+        allow_negative_numbers = true,
+        value_names = ["X0", "Y0", "Z0", "X1", "Y1", "Z1"]
+    )]
+    obstacle_region: Option<Vec<f64>>,
 }
 
 impl SceneArgs {
@@ -160,6 +169,18 @@ impl SceneArgs {
                 approach_m: r[4],
                 max_m: r[5],
                 min_axis_m: r[6],
+            }),
+            obstacle_region: self.obstacle_region.as_ref().map(|b| pb::Workspace {
+                min: Some(pb::Vector3 {
+                    x: b[0],
+                    y: b[1],
+                    z: b[2],
+                }),
+                max: Some(pb::Vector3 {
+                    x: b[3],
+                    y: b[4],
+                    z: b[5],
+                }),
             }),
             ..scene.request()
         }
@@ -241,6 +262,14 @@ fn json_of_response(r: &pb::PlanGraspsResponse) -> serde_json::Value {
                 })).collect::<Vec<_>>(),
             })
         }).collect::<Vec<_>>(),
+        "obstacles": r.obstacles.iter().map(|o| {
+            let (lo, hi) = (o.min.unwrap_or_default(), o.max.unwrap_or_default());
+            serde_json::json!({
+                "min": [lo.x, lo.y, lo.z], "max": [hi.x, hi.y, hi.z], "point_count": o.point_count,
+                "object_id": o.object_id,
+            })
+        }).collect::<Vec<_>>(),
+        "obstacles_dropped": r.obstacles_dropped,
         "timings_ms": {
             "sensor": t.sensor_ms, "table": t.table_ms, "objects": t.objects_ms, "cluster": t.cluster_ms,
             "frames": t.frames_ms, "views": t.views_ms, "select": t.select_ms,
@@ -349,6 +378,22 @@ fn print_table(r: &pb::PlanGraspsResponse) {
         if !r.grasps.iter().any(|g| g.object_id == o.id) {
             println!("object {}: no grasp ({})", o.id, no_grasp_reason(o));
         }
+    }
+    for o in &r.obstacles {
+        let (lo, hi) = (o.min.unwrap_or_default(), o.max.unwrap_or_default());
+        let whose = o
+            .object_id
+            .map_or(String::new(), |id| format!(", the rest of object {id}"));
+        println!(
+            "obstacle outside the workspace: x {:.3}..{:.3}, y {:.3}..{:.3}, z {:.3}..{:.3} m ({} points{whose})",
+            lo.x, hi.x, lo.y, hi.y, lo.z, hi.z, o.point_count
+        );
+    }
+    if r.obstacles_dropped > 0 {
+        println!(
+            "{} more obstacle boxes past the server's cap",
+            r.obstacles_dropped
+        );
     }
     if let Some(t) = r.timings {
         println!(

@@ -55,15 +55,24 @@ pub struct Workspace {
 impl Workspace {
     /// A validated box: finite corners and `min < max` on every axis.
     pub fn new(min: [f64; 3], max: [f64; 3]) -> Result<Self> {
-        for (name, corner) in [("workspace.min", min), ("workspace.max", max)] {
+        Self::named("workspace", min, max)
+    }
+
+    /// [`Self::new`] for a box that errors call `field` (e.g. a request's
+    /// `obstacle_region`).
+    pub fn named(field: &'static str, min: [f64; 3], max: [f64; 3]) -> Result<Self> {
+        for (corner_name, corner) in [("min", min), ("max", max)] {
             if corner.iter().any(|v| !v.is_finite()) {
-                return Err(Error::invalid(name, format!("must be finite, got {corner:?}")));
+                return Err(Error::invalid(
+                    format!("{field}.{corner_name}"),
+                    format!("must be finite, got {corner:?}"),
+                ));
             }
         }
         for (axis, name) in ["x", "y", "z"].iter().enumerate() {
             if min[axis] >= max[axis] {
                 return Err(Error::invalid(
-                    "workspace",
+                    field,
                     format!(
                         "min.{name} ({}) must be below max.{name} ({})",
                         min[axis], max[axis]

@@ -65,7 +65,9 @@ pub use pipeline::{
     ApproachCone, ArmReach, DebugView, DetectedObject, Finished, ObjectRefusals, Plan, PlanOptions, Planner,
     PlannerConfig, Prepared, Refusals, SceneInput, Segmentation, StageTimings, ViewReport, approach_of,
 };
-pub use segment::{ClusterConfig, CreaseConfig, Reattach, TableConfig, TablePlane};
+pub use segment::{
+    ClusterConfig, CreaseConfig, ObstacleConfig, OutsideObstacle, Reattach, TableConfig, TablePlane,
+};
 pub use select::ViewPolicy;
 pub use sensor::{CloudFrame, DepthEncoding, DepthFrame, FieldOfView, Intrinsics, PointCloud, SensorInput};
 pub use view::{OBLIQUE_TILT_DEG, OrthoView, ViewAxis};

@@ -38,6 +38,10 @@ def parse(argv):
     p.add_argument("--arm-reach", action="store_true",
                    help="ask only for grasps the arm reaches at the pre-grasp, as the robot-bridge tells it "
                         "from its calibration (the planner's arm_reach)")
+    p.add_argument("--obstacle-margin-m", type=float, default=0.0, metavar="M",
+                   help="ask the planner for what stands this far around the workspace (and above it) as "
+                        "obstacle boxes, and hand them to the robot-bridge, as its planner.obstacle_margin_m "
+                        "does (default 0: not asked, as before 2026-12-01)")
     p.add_argument("--no-view-cascade", action="store_true",
                    help="ask for the paper's single pass over the policy's views (the ablation)")
     p.add_argument("--bin-fill-m", type=float, default=None, metavar="M",
@@ -112,7 +116,7 @@ def _init(args):
         args.server, args.policy, args.min_quality, args.max_grasps,
         view_cascade=False if args.no_view_cascade else None, approach_cone=args.approach_cone,
         arm_reach=_worker["bridge"].arm_reach() if args.arm_reach else None,
-        with_views=args.attempt_views is not None)
+        with_views=args.attempt_views is not None, obstacle_margin_m=args.obstacle_margin_m)
     _worker["args"] = args
     _worker["renderers"] = {}
     if args.attempt_views:
@@ -197,7 +201,8 @@ def main(argv=None):
     print(file=sys.stderr)
     meta = {**info, "suite": args.suite, "policy": args.policy, "min_quality": args.min_quality,
             "max_grasps": args.max_grasps, "view_cascade": not args.no_view_cascade,
-            "approach_cone": args.approach_cone, "arm_reach": args.arm_reach, "seed": args.seed,
+            "approach_cone": args.approach_cone, "arm_reach": args.arm_reach,
+            "obstacle_margin_m": args.obstacle_margin_m, "seed": args.seed,
             "resolution": args.resolution, "noise": args.noise,
             "oracle": args.oracle, "bin_fill_m": args.bin_fill_m,
             "approach_clearance_m": args.approach_clearance_m, "failed_radius_m": args.failed_radius_m,

@@ -29,7 +29,7 @@ class Planner:
     """A gRPC connection to the service, and the request options of a setting."""
 
     def __init__(self, address, policy="default", min_quality=None, max_grasps=10, timeout_s=30.0,
-                 view_cascade=None, approach_cone=None, arm_reach=None, with_views=False):
+                 view_cascade=None, approach_cone=None, arm_reach=None, with_views=False, obstacle_margin_m=0.0):
         import grpc  # noqa: PLC0415
 
         if policy not in POLICIES:
@@ -50,6 +50,10 @@ class Planner:
             if len(values) != 4:
                 raise ValueError(f"--approach-cone {approach_cone!r}: give AX,AY,AZ,HALF_DEG")
             self.approach_cone = values
+        # What stands this far around the workspace (and above it) is asked
+        # for as obstacle boxes and handed to the bridge (0: not asked), as
+        # the robot-bridge's planner.obstacle_margin_m asks for it.
+        self.obstacle_region = obstacle_region(obstacle_margin_m)
         # The robot-bridge's answer to {"arm_reach": null} as the request's ArmReach, or None.
         self.arm_reach = None if arm_reach is None else client.arm_reach(
             self.pb, arm_reach["shoulder"], arm_reach["wrist_back_m"], arm_reach["approach_m"],
@@ -94,6 +98,10 @@ class Planner:
                                                        half_angle_rad=np.radians(half_deg))
         if self.arm_reach is not None:
             options["arm_reach"] = self.arm_reach
+        if self.obstacle_region is not None:
+            (a0, b0, c0), (a1, b1, c1) = self.obstacle_region
+            options["obstacle_region"] = pb.Workspace(min=pb.Vector3(x=a0, y=b0, z=c0),
+                                                      max=pb.Vector3(x=a1, y=b1, z=c1))
         (x0, y0, z0), (x1, y1, z1) = WORKSPACE
         request = pb.PlanGraspsRequest(
             depth=pb.DepthImage(width=pose.width, height=pose.height, encoding=pb.DEPTH_ENCODING_FLOAT32_M,
@@ -114,7 +122,7 @@ class Planner:
             # other error (the server gone) ends the run.
             if e.code() != grpc.StatusCode.INVALID_ARGUMENT:
                 raise
-            return {"grasps": [], "objects": [], "table": None, "server_ms": 0.0,
+            return {"grasps": [], "objects": [], "table": None, "obstacles": [], "server_ms": 0.0,
                     "call_ms": (time.perf_counter() - start) * 1000.0, "views": {},
                     "error": f"{e.code().name}: {e.details()}"}
         elapsed_ms = (time.perf_counter() - start) * 1000.0
@@ -143,7 +151,11 @@ class Planner:
         } for o in response.objects]
         table = {"normal": [response.table.normal.x, response.table.normal.y, response.table.normal.z],
                  "offset_m": response.table.offset_m}
-        return {"grasps": grasps, "objects": objects, "table": table, "server_ms": response.timings.total_ms,
+        obstacles = [{"min": [o.min.x, o.min.y, o.min.z], "max": [o.max.x, o.max.y, o.max.z],
+                      "object_id": o.object_id if o.HasField("object_id") else None}
+                     for o in response.obstacles]
+        return {"grasps": grasps, "objects": objects, "table": table, "obstacles": obstacles,
+                "server_ms": response.timings.total_ms,
                 "call_ms": elapsed_ms, "views": views}
 
     def close(self):
@@ -154,14 +166,30 @@ class Planner:
 REFUSALS = ("table", "neighbour", "own_points", "outside_approach_cone", "out_of_reach", "too_wide", "no_pose")
 
 
+def obstacle_region(margin_m):
+    """The workspace grown by `margin_m` sideways and upwards (the robot-bridge's
+    planner.obstacle_margin_m), or None at 0."""
+    if not margin_m:
+        return None
+    (x0, y0, z0), (x1, y1, z1) = WORKSPACE
+    return (x0 - margin_m, y0 - margin_m, z0), (x1 + margin_m, y1 + margin_m, z1 + margin_m)
+
+
 def bridge_scene(plan):
     """The planner's answer as the robot-bridge turns it into obstacles
-    (`plan-jsonl`'s `scene`: detected objects, table plane, workspace)."""
+    (`plan-jsonl`'s `scene`: detected objects, table plane, workspace, and
+    the boxes seen outside the workspace when there are any)."""
     (x0, y0, z0), (x1, y1, z1) = WORKSPACE
-    return {"detected": [{k: o[k] for k in ("id", "position", "orientation", "extent_min_m", "extent_max_m")}
-                         for o in plan["objects"]],
-            "table_plane": plan["table"],
-            "workspace": {"min": [x0, y0, z0], "max": [x1, y1, z1]}}
+    scene = {"detected": [{k: o[k] for k in ("id", "position", "orientation", "extent_min_m", "extent_max_m")}
+                          for o in plan["objects"]],
+             "table_plane": plan["table"],
+             "workspace": {"min": [x0, y0, z0], "max": [x1, y1, z1]}}
+    if plan.get("obstacles"):
+        # A box that continues a detected object names its index in `detected`.
+        index_of = {o["id"]: k for k, o in enumerate(plan["objects"])}
+        scene["obstacles"] = [{"min": o["min"], "max": o["max"], "object": index_of.get(o.get("object_id"))}
+                              for o in plan["obstacles"]]
+    return scene
 
 
 class OraclePlanner:

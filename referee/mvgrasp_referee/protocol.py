@@ -175,6 +175,11 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
             start = 0
             while start < len(grasps):
                 answer = ask(start)
+                if "obstacles" in obstacles:
+                    # The boxes seen outside the workspace, and those the bridge took for the cell.
+                    entry["obstacles_seen"] = len(obstacles["obstacles"])
+                    entry["obstacles_left_out"] = sorted({o["why"] for o in answer.get("obstacles_left_out", [])})
+                    entry["obstacles_kept"] = entry["obstacles_seen"] - len(answer.get("obstacles_left_out", []))
                 if answer["grasp_index"] is None:
                     entry["unreachable"] += len(grasps) - start
                     entry["refused"] += [r["reason"] for r in answer["refused"]][:3]

@@ -105,7 +105,7 @@ def markdown(meta, table):
         f"Planner `{meta['model_version']}` ({meta['backend']}), request: view policy `{meta['policy']}`, "
         f"min_quality {meta['min_quality']}, max_grasps {meta['max_grasps']}"
         f"{'' if meta.get('view_cascade', True) else ', no view cascade'}"
-        f"{', approach cone ' + meta['approach_cone'] if meta.get('approach_cone') else ''}{', arm reach from the bridge' if meta.get('arm_reach') else ''}. Suite `{meta['suite']}`, "
+        f"{', approach cone ' + meta['approach_cone'] if meta.get('approach_cone') else ''}{', arm reach from the bridge' if meta.get('arm_reach') else ''}{', obstacles within ' + str(meta['obstacle_margin_m']) + ' m of the workspace' if meta.get('obstacle_margin_m') else ''}. Suite `{meta['suite']}`, "
         f"seed {meta['seed']}, {meta['resolution']} depth{' with noise' if meta['noise'] else ''}"
         f"{_cell_settings(meta)}. Command: `{meta['command']}`.",
         "",

@@ -425,6 +425,106 @@ class CameraTest(unittest.TestCase):
         self.assertTrue(0.8 < np.mean(shares) < 1.0, np.mean(shares))
 
 
+def boxes_as_the_planner_makes_them(points, cell_m=0.02, min_points=6):
+    """World-axis boxes of `points` as the planner reports what stands
+    outside its workspace (core/src/segment/outside.rs): 2 cm cells of x-y,
+    touching cells one box, grown by half a cell, from the table (z = 0) up."""
+    from scipy import ndimage  # noqa: PLC0415
+
+    ij = np.floor(points[:, :2] / cell_m).astype(int)
+    lo = ij.min(axis=0)
+    grid = np.zeros(tuple(ij.max(axis=0) - lo + 1), int)
+    np.add.at(grid, tuple((ij - lo).T), 1)
+    labels, _ = ndimage.label(grid > 0, structure=np.ones((3, 3)))
+    of_point = labels[tuple((ij - lo).T)]
+    boxes = []
+    for k in np.unique(of_point):
+        p = points[of_point == k]
+        if len(p) >= min_points:
+            boxes.append({"min": [*(p[:, :2].min(axis=0) - cell_m / 2), 0.0],
+                          "max": [*(p[:, :2].max(axis=0) + cell_m / 2), float(p[:, 2].max())]})
+    return boxes
+
+
+class ObstaclesTest(unittest.TestCase):
+    def test_the_bridge_takes_the_cell_for_the_cell_and_keeps_an_object_beside_the_square(self):
+        """What the cameras see within 0.5 m of the workspace (the bridge's
+        default planner.obstacle_margin_m) and outside it, boxed as the
+        planner boxes it: with the arm parked, every box of an empty cell is
+        one the bridge leaves out as the cell itself (the bin, the robot and
+        its base); an object 12 cm beside the square (which reaches the table's far
+        edge at y = 0.3) is kept."""
+        (x0, y0, z0), (x1, y1, z1) = planner.obstacle_region(0.5)
+        (w0, v0, _), (w1, v1, _) = planner.WORKSPACE
+        body = objects.make_body(pools.HOUSEHOLD[0], np.random.default_rng(0))
+        probe = cell.build([], [])
+        b = bridge.Bridge(bridge_binary(), gripper.tcp_in_flange(probe))
+        rng = np.random.default_rng(8)
+        kept_object = 0
+        try:
+            for with_object in (False, True):
+                placed = [((0.42, 0.0, 0.1), (1.0, 0.0, 0.0, 0.0))] if with_object else []
+                c = cell.build([body] if with_object else [], placed)
+                for _ in range(200):
+                    mujoco.mj_step(c.model, c.data)
+                for kind in camera.CAMERAS:
+                    for _ in range(3):
+                        pose, _ = camera.sample_pose(kind, rng, "640x480")
+                        p, v, u = camera.back_project(rendered_depth(c, pose), pose)
+                        p = p[(v % 4 == 0) & (u % 4 == 0)]
+                        inside = (p[:, 0] >= w0) & (p[:, 0] <= w1) & (p[:, 1] >= v0) & (p[:, 1] <= v1)
+                        p = p[~inside & (p[:, 0] >= x0) & (p[:, 0] <= x1) & (p[:, 1] >= y0) & (p[:, 1] <= y1)
+                              & (p[:, 2] > 0.008) & (p[:, 2] <= z1)]
+                        boxes = boxes_as_the_planner_makes_them(p)
+                        scene = {"detected": [], "table_plane": {"normal": [0.0, 0.0, 1.0], "offset_m": 0.0},
+                                 "workspace": {"min": [w0, v0, z0], "max": [w1, v1, 0.45]}, "obstacles": boxes}
+                        answer = b.plan([], scene, c.arm_q())
+                        left_out = {o["obstacle"] for o in answer["obstacles_left_out"]}
+                        kept = [box for k, box in enumerate(boxes) if f"obstacle {k}" not in left_out]
+                        # Only the object may be kept: a box round (0.42, 0).
+                        for box in kept:
+                            self.assertTrue(with_object and box["min"][0] < 0.42 < box["max"][0]
+                                            and box["min"][1] < 0.0 < box["max"][1], (kind, box, boxes))
+                        kept_object += len(kept)
+        finally:
+            b.close()
+        self.assertGreater(kept_object, 0)
+
+
+    def test_the_bridges_arm_covers_the_simulated_arms_links(self):
+        """A 2 cm box at the centre of each of the simulated arm's link
+        meshes (upper arm, forearm, wrists), the arm parked and reaching
+        over the table: the robot-bridge takes every one for the arm where it
+        stands (its capsules cover them). Its upper arm runs 0.136 m out
+        along the shoulder axis from the DH line; a model on the DH lines
+        misses it."""
+        c = cell.build([], [])
+        names = [c.model.geom(i).name for i in range(c.model.ngeom)]
+        links = ["arm/upperarm_col", "arm/forearm_col", "arm/wrist1_col", "arm/wrist2_col"]
+        b = bridge.Bridge(bridge_binary(), gripper.tcp_in_flange(c))
+        (w0, v0, z0), (w1, v1, _) = planner.WORKSPACE
+        checked = 0
+        try:
+            for q in (cell.PARK, (-1.57, -1.2, 1.4, -1.7, -1.57, 0.0), (-2.1, -1.0, 1.0, -1.6, -1.57, 0.0),
+                      (-1.57, -0.7, 1.3, -2.2, -1.57, 0.0), (-0.8, -0.6, 1.0, -2.0, -1.57, 0.0)):
+                c.set_arm(np.array(q))
+                mujoco.mj_forward(c.model, c.data)
+                boxes = [{"min": list(c.data.geom_xpos[names.index(g)] - 0.01),
+                          "max": list(c.data.geom_xpos[names.index(g)] + 0.01)} for g in links]
+                scene = {"detected": [], "table_plane": {"normal": [0.0, 0.0, 1.0], "offset_m": 0.0},
+                         "workspace": {"min": [w0, v0, z0], "max": [w1, v1, 0.45]}, "obstacles": boxes}
+                why = {o["obstacle"]: o["why"] for o in b.plan([], scene, c.arm_q())["obstacles_left_out"]}
+                for k, g in enumerate(links):
+                    centre = np.array(c.data.geom_xpos[names.index(g)])
+                    if np.max(np.abs(centre[:2] - cell.WORLD_FROM_BASE[0][:2])) < 0.12:
+                        continue  # over the base column: left out for that
+                    self.assertEqual(why.get(f"obstacle {k}"), "touches the arm where it stands", (q, g, why))
+                    checked += 1
+        finally:
+            b.close()
+        self.assertGreaterEqual(checked, 14)
+
+
 class OracleTest(unittest.TestCase):
     def test_the_oracle_clears_isolated_test_objects(self):
         """Ground-truth top-down grasps through the executor and the

@@ -7,8 +7,10 @@
 //! grasp the fingers may be left out of the checks against detected objects
 //! ([`CollisionWorld::with_fingers_against_detected`]): the planner has
 //! checked them against the points it saw. DH origins
-//! of a UR arm sit on the joint axes, not on the link centrelines, so the
-//! capsules are generous (`ArmModel::margin_m` on top) rather than exact.
+//! of a UR arm sit on the joint axes, not on the link centrelines: each
+//! capsule is set beside its DH line by the link's offset along the joint
+//! axis (`ArmModel::link_offset_m`; the upper arm 0.138 m), with radii
+//! generous (`ArmModel::margin_m` on top) rather than exact.
 
 use nalgebra::{Isometry3, Translation3, Vector3};
 use parry3d::math::{Pose, Rotation, Vector};
@@ -34,6 +36,12 @@ pub struct BoxObstacle {
 pub struct ArmModel {
     /// Capsule radius between DH frames i and i+1 (i = 1..5; the base column is not checked).
     pub link_radius_m: [f64; 5],
+    /// How far each of those links lies beside the line between its DH
+    /// frame origins, along frame i's z (the next joint's axis): a UR's
+    /// upper arm runs 0.138 m out along the shoulder axis (its shoulder
+    /// offset), the forearm 0.131 m back from there. Where the offset
+    /// changes at a joint, a capsule along the joint's axis joins the two.
+    pub link_offset_m: [f64; 5],
     /// The gripper's solid parts.
     pub hand: HandModel,
     /// Added to every radius and every half size of the hand's boxes (m).
@@ -44,6 +52,7 @@ impl Default for ArmModel {
     fn default() -> Self {
         Self {
             link_radius_m: [0.06, 0.05, 0.045, 0.045, 0.045],
+            link_offset_m: [0.138, 0.007, 0.0, 0.0, 0.0],
             hand: HandModel::default(),
             margin_m: 0.01,
         }
@@ -146,6 +155,60 @@ impl HandModel {
             finger(-finger_x),
         ]
     }
+}
+
+/// The UR5e's base column (radius 75 mm, a margin on top), which the link
+/// capsules leave out (m).
+pub const BASE_COLUMN_RADIUS_M: f64 = 0.1;
+
+/// The boxes the planner saw outside its workspace
+/// (`PlanGraspsResponse.obstacles`) that are not the cell itself, and the
+/// rest by why they were left out. A box is taken for part of the cell when
+/// it meets one of `cell`'s obstacles other than the table (the basket and
+/// what lies in it), when the arm and hand at `current` touch it (the arm
+/// seen in the frame), or when it covers the base axis within `base_radius_m`
+/// (the base column, which the capsules leave out).
+pub fn foreign_obstacles(
+    seen: &[BoxObstacle],
+    cell: &[BoxObstacle],
+    world_from_base: Isometry3<f64>,
+    model: &ArmModel,
+    arm: &Ur5e,
+    current: &Joints,
+    base_radius_m: f64,
+) -> (Vec<BoxObstacle>, Vec<(String, &'static str)>) {
+    let base = world_from_base.translation.vector;
+    let mut kept = Vec::new();
+    let mut left_out = Vec::new();
+    for o in seen {
+        let shape = Obstacle::new(o, false);
+        let meets_cell = cell.iter().filter(|c| c.name != "table").any(|c| {
+            let c = Obstacle::new(c, false);
+            intersection_test(&shape.pose, &shape.cuboid, &c.pose, &c.cuboid)
+                .map_or(true, |hit| hit.intersecting)
+        });
+        // The base axis in the box's frame, across the box's x-y.
+        let local = o.world_from_box.inverse_transform_point(&base.into());
+        let h = &o.half_extents_m;
+        let on_base = local.x.abs() <= h.x + base_radius_m && local.y.abs() <= h.y + base_radius_m;
+        let why = if meets_cell {
+            Some("meets the cell's fixed obstacles")
+        } else if on_base {
+            Some("over the robot's base")
+        } else if CollisionWorld::new(world_from_base, std::slice::from_ref(o), model.clone())
+            .collision(arm, current)
+            .is_some()
+        {
+            Some("touches the arm where it stands")
+        } else {
+            None
+        };
+        match why {
+            Some(why) => left_out.push((o.name.clone(), why)),
+            None => kept.push(o.clone()),
+        }
+    }
+    (kept, left_out)
 }
 
 /// Obstacles in the world, and where the robot stands.
@@ -272,15 +335,29 @@ impl CollisionWorld {
     fn shapes(&self, arm: &Ur5e, q: &Joints) -> (Vec<Capsule>, Vec<(Pose, Cuboid)>) {
         let frames = arm.forward_frames(q).map(|f| self.world_from_base * f);
         let origin = |i: usize| frames[i].translation.vector;
-        let capsules = (1..6)
+        // Link i's offset beside its DH line, along frame i's z (none for i = 0, the base).
+        let beside = |i: usize| match i {
+            1..=5 => self.model.link_offset_m[i - 1] * (frames[i].rotation * Vector3::z()),
+            _ => Vector3::zeros(),
+        };
+        let radius = |i: usize| (self.model.link_radius_m[i - 1] + self.model.margin_m) as f32;
+        let mut capsules: Vec<Capsule> = (1..6)
             .map(|i| {
                 Capsule::new(
-                    vector(&origin(i)),
-                    vector(&origin(i + 1)),
-                    (self.model.link_radius_m[i - 1] + self.model.margin_m) as f32,
+                    vector(&(origin(i) + beside(i))),
+                    vector(&(origin(i + 1) + beside(i))),
+                    radius(i),
                 )
             })
             .collect();
+        // The joint housings where the offset changes: at origin i, from
+        // link i-1's side to link i's.
+        for i in 1..6 {
+            let (from, to) = (origin(i) + beside(i - 1), origin(i) + beside(i));
+            if (to - from).norm() > 1e-6 {
+                capsules.push(Capsule::new(vector(&from), vector(&to), radius(i)));
+            }
+        }
         let boxes = self
             .hand
             .iter()
@@ -469,6 +546,34 @@ mod tests {
         assert_eq!(world.collision(&arm, &down), Some("table"));
     }
 
+    /// A UR's upper arm runs 0.138 m out along the shoulder axis from the
+    /// line between its DH origins (the referee's MuJoCo arm: 0.136 m at
+    /// its mesh's centre); a 2 cm cube there touches the arm, and a model
+    /// on the DH lines misses it by 5 cm.
+    #[test]
+    fn the_upper_arm_lies_beside_its_dh_line() {
+        let arm = Ur5e::default();
+        let frames = arm.forward_frames(&HOME);
+        let middle = (frames[1].translation.vector + frames[2].translation.vector) / 2.0;
+        let out = frames[1].rotation * Vector3::z();
+        let cube = BoxObstacle {
+            name: "cube".to_owned(),
+            world_from_box: Isometry3::from(Translation3::from(middle + 0.138 * out)),
+            half_extents_m: Vector3::new(0.01, 0.01, 0.01),
+        };
+        let on_lines = ArmModel {
+            link_offset_m: [0.0; 5],
+            ..ArmModel::default()
+        };
+        let touches = |model: ArmModel| {
+            CollisionWorld::new(Isometry3::identity(), std::slice::from_ref(&cube), model)
+                .collision(&arm, &HOME)
+                .is_some()
+        };
+        assert!(touches(ArmModel::default()));
+        assert!(!touches(on_lines));
+    }
+
     #[test]
     fn the_hand_is_as_wide_as_its_opening_and_open_between_the_pads() {
         let arm = Ur5e::default();
@@ -494,6 +599,45 @@ mod tests {
         // 5 cm across the closing direction: beside the 3 cm wide fingers, then on one.
         assert!(!touches(cube(0.06, 0.05), 0.10));
         assert!(touches(cube(0.06, 0.0), 0.10));
+    }
+
+    #[test]
+    fn seen_boxes_of_the_cell_itself_are_left_out() {
+        let arm = Ur5e::default();
+        let cube = |name: &str, x: f64, y: f64, z: f64| BoxObstacle {
+            name: name.to_owned(),
+            world_from_box: Isometry3::translation(x, y, z),
+            half_extents_m: Vector3::new(0.05, 0.05, 0.05),
+        };
+        let wrist = arm.forward_frames(&HOME)[5].translation.vector;
+        let cell = [table(0.0), cube("basket", 0.45, 0.45, 0.05)];
+        let seen = [
+            cube("in the basket", 0.5, 0.5, 0.1),
+            cube("at the wrist", wrist.x, wrist.y, wrist.z),
+            cube("on the base", 0.0, 0.0, 0.05),
+            cube("on the table", 0.0, -0.6, 0.05),
+        ];
+        let (kept, left_out) = foreign_obstacles(
+            &seen,
+            &cell,
+            Isometry3::identity(),
+            &ArmModel::default(),
+            &arm,
+            &HOME,
+            BASE_COLUMN_RADIUS_M,
+        );
+        assert_eq!(
+            kept.iter().map(|o| o.name.as_str()).collect::<Vec<_>>(),
+            ["on the table"]
+        );
+        assert_eq!(
+            left_out,
+            [
+                ("in the basket".to_owned(), "meets the cell's fixed obstacles"),
+                ("at the wrist".to_owned(), "touches the arm where it stands"),
+                ("on the base".to_owned(), "over the robot's base"),
+            ]
+        );
     }
 
     #[test]

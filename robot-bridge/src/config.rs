@@ -134,6 +134,10 @@ pub struct PlannerSection {
     /// Ask the planner only for grasps this arm reaches at the pre-grasp
     /// (`PickConfig::arm_reach`, from the calibration); false: any position.
     pub arm_reach: bool,
+    /// Ask the planner for what stands on the table within this of the
+    /// workspace (sideways and above it; m) as obstacle boxes, and keep the
+    /// arm clear of those that are not the cell itself (0: not asked).
+    pub obstacle_margin_m: f64,
     /// PEM CA that signed the planner's certificate: call it over TLS.
     pub tls_ca: Option<std::path::PathBuf>,
     /// PEM certificate of this bridge (mutual TLS; with `tls_key`).
@@ -235,6 +239,7 @@ impl Default for BridgeConfig {
                 }),
                 min_quality: 0.0,
                 arm_reach: true,
+                obstacle_margin_m: 0.5,
                 tls_ca: None,
                 tls_cert: None,
                 tls_key: None,
@@ -323,6 +328,7 @@ impl BridgeConfig {
             ("pick.failed_angle_deg", self.pick.failed_angle_deg, 90.0),
             ("recovery.unlock_after_s", self.recovery.unlock_after_s, 60.0),
             ("planner.min_quality", f64::from(self.planner.min_quality), 1.0),
+            ("planner.obstacle_margin_m", self.planner.obstacle_margin_m, 5.0),
         ] {
             if !(value.is_finite() && (0.0..=max).contains(&value)) {
                 return Err(bad(field, format!("{value} is not in [0, {max}]")));
@@ -426,6 +432,7 @@ impl BridgeConfig {
                 true => Some(self.pick_config()?.arm_reach(arm)?),
                 false => None,
             },
+            obstacle_margin_m: self.planner.obstacle_margin_m,
         })
     }
 

@@ -19,8 +19,10 @@
 //!   the world (mvgrasp grasp frame); the optional `scene` is the planner's
 //!   answer, `{"detected": [{"id", "position", "orientation", "extent_min_m",
 //!   "extent_max_m"}], "table_plane": {"normal", "offset_m"}, "workspace":
-//!   {"min", "max"}}`, turned into obstacles exactly as `pick` turns a
-//!   planner's answer into them. A `movel` step carries its joint
+//!   {"min", "max"}, "obstacles": [{"min", "max"}]}` (`obstacles`, optional:
+//!   the planner's boxes outside the workspace), turned into obstacles
+//!   exactly as `pick` turns a planner's answer into them
+//!   (`obstacles_left_out` in the answer: the boxes taken for the cell). A `movel` step carries its joint
 //!   samples every centimetre (`path`), so the straight line is the one the
 //!   bridge checked. `refused` says, for each better-ranked grasp that was
 //!   skipped, why;
@@ -41,7 +43,7 @@ use serde::Deserialize;
 use crate::collision::BoxObstacle;
 use crate::error::{Error, Result};
 use crate::pick::{GraspTarget, PickConfig, PoseJson, plan_pick};
-use crate::planner::{ObjectBox, obstacles};
+use crate::planner::{ObjectBox, obstacles, outside_box};
 use crate::ur5e::{Joints, Ur5e};
 
 /// One request line.
@@ -85,6 +87,21 @@ struct SceneJson {
     detected: Vec<DetectedJson>,
     table_plane: PlaneJson,
     workspace: WorkspaceJson,
+    /// The planner's boxes of what stands outside the workspace
+    /// (`PlanGraspsResponse.obstacles`); absent: none.
+    #[serde(default)]
+    obstacles: Vec<OutsideJson>,
+}
+
+/// A box seen outside the workspace: its corners, and the index in
+/// `detected` of the object it continues past the border, if any.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OutsideJson {
+    min: [f64; 3],
+    max: [f64; 3],
+    #[serde(default)]
+    object: Option<usize>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -211,14 +228,44 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                 })
                 .collect::<Result<Vec<_>>>()?;
             let mut config = config.clone();
+            let mut left_out = Vec::new();
             let scene = match &plan.scene {
                 Some(scene) => {
                     let (objects, table) = scene_obstacles(scene)?;
                     config.obstacles.push(table);
+                    let seen = scene
+                        .obstacles
+                        .iter()
+                        .enumerate()
+                        .map(|(k, o)| {
+                            let (min, max) = (Vector3::from(o.min), Vector3::from(o.max));
+                            if !(min.iter().chain(max.iter()).all(|v| v.is_finite())
+                                && (0..3).all(|i| min[i] <= max[i]))
+                            {
+                                return Err(Error::InvalidInput {
+                                    field: "scene.obstacles",
+                                    reason: format!("{o:?}: finite corners, min <= max"),
+                                });
+                            }
+                            if o.object.is_some_and(|i| i >= scene.detected.len()) {
+                                return Err(Error::InvalidInput {
+                                    field: "scene.obstacles",
+                                    reason: format!("{o:?}: `object` is not an index of `detected`"),
+                                });
+                            }
+                            Ok((outside_box(k, min, max), o.object))
+                        })
+                        .collect::<Result<Vec<_>>>()?;
+                    crate::ur5e::check_joints("current", &plan.current)?;
+                    left_out = config.add_seen_obstacles(arm, &seen, &plan.current);
                     objects
                 }
                 None => Vec::new(),
             };
+            let left_out: Vec<_> = left_out
+                .into_iter()
+                .map(|(name, why)| serde_json::json!({"obstacle": name, "why": why}))
+                .collect();
             // The first feasible grasp, and why each better-ranked one was refused.
             let mut refused = Vec::new();
             for (index, grasp) in grasps.iter().enumerate() {
@@ -229,6 +276,7 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                             "grasp_index": index,
                             "steps": pick.steps,
                             "refused": refused,
+                            "obstacles_left_out": left_out,
                         }));
                     }
                     Err(e @ Error::InvalidInput { .. }) => return Err(e),
@@ -242,6 +290,7 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                 "grasp_index": null,
                 "steps": [],
                 "refused": refused,
+                "obstacles_left_out": left_out,
             }))
         }
     }
@@ -345,6 +394,63 @@ mod tests {
                 "{last} vs {end}"
             );
         }
+    }
+
+    /// The planner's boxes outside the workspace: one in the arm's way
+    /// refuses the pick and names itself; one far off changes nothing; one
+    /// over the robot's base is taken for the cell and said so.
+    #[test]
+    fn boxes_seen_outside_the_workspace_keep_the_arm_clear() {
+        let plan = |obstacles: &str| {
+            let line = format!(
+                r#"{{"plan": {{"grasps": [
+                {{"position": [0.0, -0.45, 0.05], "orientation": [1, 0, 0, 0], "width_m": 0.05, "object": 0}}],
+                "scene": {{"detected": [{{"id": 0, "position": [0.0, -0.45, 0.03], "orientation": [0, 0, 0, 1],
+                  "extent_min_m": [-0.02, -0.02, -0.03], "extent_max_m": [0.02, 0.02, 0.03]}}],
+                  "table_plane": {{"normal": [0, 0, 1], "offset_m": 0.0}},
+                  "workspace": {{"min": [-0.3, -0.7, -0.05], "max": [0.3, -0.3, 0.4]}},
+                  "obstacles": [{obstacles}]}},
+                "current": [0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0]}}}}"#
+            );
+            ask(&line.replace('\n', " "))
+        };
+        let free = plan("");
+        assert_eq!(
+            (free["ok"].clone(), free["grasp_index"].clone()),
+            (true.into(), 0.into()),
+            "{free}"
+        );
+        let far = plan(r#"{"min": [0.7, 0.7, 0.0], "max": [0.8, 0.8, 0.2]}"#);
+        assert_eq!(far["grasp_index"], 0, "{far}");
+        assert_eq!(far["obstacles_left_out"], serde_json::json!([]));
+        // Over the grasp, where the wrist comes down.
+        let blocking = plan(r#"{"min": [-0.06, -0.52, 0.25], "max": [0.06, -0.38, 0.5]}"#);
+        assert_eq!(blocking["grasp_index"], serde_json::Value::Null, "{blocking}");
+        assert!(
+            blocking["refused"][0]["reason"]
+                .as_str()
+                .unwrap()
+                .contains("obstacle 0"),
+            "{blocking}"
+        );
+        let base = plan(r#"{"min": [-0.05, -0.05, 0.0], "max": [0.05, 0.05, 0.1]}"#);
+        assert_eq!(base["grasp_index"], 0, "{base}");
+        assert_eq!(
+            base["obstacles_left_out"][0]["why"], "over the robot's base",
+            "{base}"
+        );
+        // The same box as the rest of the grasped object (cut off by the
+        // workspace's border): not in its own grasp's way.
+        let own = plan(r#"{"min": [-0.06, -0.52, 0.25], "max": [0.06, -0.38, 0.5], "object": 0}"#);
+        assert_eq!(own["grasp_index"], 0, "{own}");
+        let stray = plan(r#"{"min": [0.7, 0.7, 0.0], "max": [0.8, 0.8, 0.2], "object": 3}"#);
+        assert_eq!(stray["ok"], false, "{stray}");
+        let bad = plan(r#"{"min": [0.0, 0.0, 0.0], "max": [-1.0, 0.0, 0.0]}"#);
+        assert_eq!(bad["ok"], false, "{bad}");
+        assert!(
+            bad["error"].as_str().unwrap().contains("scene.obstacles"),
+            "{bad}"
+        );
     }
 
     #[test]

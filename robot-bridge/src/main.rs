@@ -316,6 +316,15 @@ fn pick(
         Some(client) => client.next_state()?.actual_q,
         None => HOME,
     };
+    let left_out = config.add_seen_obstacles(arm, &planned.outside, &current);
+    println!(
+        "{} boxes outside the workspace kept clear of, {} taken for the cell",
+        planned.outside.len() - left_out.len(),
+        left_out.len()
+    );
+    for (name, why) in &left_out {
+        println!("  {name}: {why}");
+    }
     let failed = match failed_picks {
         Some(path) => match std::fs::read_to_string(path) {
             Ok(text) => robot_bridge::pick::parse_failed_picks(&text)?,

@@ -150,6 +150,12 @@ pub struct PlannedScene {
     pub objects: Vec<BoxObstacle>,
     /// The table under them: a 5 cm slab below the fitted plane, as wide as the workspace.
     pub table: BoxObstacle,
+    /// What stands on the table around the workspace (within
+    /// [`Ask::obstacle_margin_m`]), as the planner boxed it: `obstacle k`,
+    /// with the detected object it continues past the workspace's border,
+    /// if any. Not grasped; some may be the cell itself
+    /// ([`crate::collision::foreign_obstacles`] tells).
+    pub outside: Vec<(BoxObstacle, Option<usize>)>,
     /// Which planner produced them (model version and where it ran).
     pub planner: String,
 }
@@ -213,6 +219,9 @@ pub struct Ask {
     pub approach_cone: Option<ApproachCone>,
     /// Only grasps the arm reaches (`planner.arm_reach`).
     pub arm_reach: Option<ArmReach>,
+    /// What stands within this of the workspace, sideways and above it, is
+    /// asked for as obstacle boxes (`planner.obstacle_margin_m`; 0: not).
+    pub obstacle_margin_m: f64,
 }
 
 impl Ask {
@@ -223,7 +232,30 @@ impl Ask {
             min_quality: 0.0,
             approach_cone: None,
             arm_reach: None,
+            obstacle_margin_m: 0.0,
         }
+    }
+
+    /// The obstacle region around `workspace`: grown by
+    /// `obstacle_margin_m` in x, y and upwards; `None` at 0.
+    pub fn obstacle_region(&self, workspace: &Workspace) -> Option<Workspace> {
+        let m = self.obstacle_margin_m;
+        (m > 0.0).then(|| Workspace {
+            min: Point3::new(workspace.min.x - m, workspace.min.y - m, workspace.min.z),
+            max: Point3::new(workspace.max.x + m, workspace.max.y + m, workspace.max.z + m),
+        })
+    }
+}
+
+/// An obstacle box of the planner (world, axis-aligned) as the bridge's box.
+pub(crate) fn outside_box(index: usize, min: Vector3<f64>, max: Vector3<f64>) -> BoxObstacle {
+    BoxObstacle {
+        name: format!("obstacle {index}"),
+        world_from_box: Isometry3::from_parts(
+            Translation3::from((min + max) / 2.0),
+            UnitQuaternion::identity(),
+        ),
+        half_extents_m: (max - min) / 2.0,
     }
 }
 
@@ -257,6 +289,7 @@ pub fn plan_locally(scene: &SceneFiles, ask: &Ask) -> Result<PlannedScene> {
         min_quality: ask.min_quality,
         approach_cone: ask.approach_cone,
         arm_reach: ask.arm_reach,
+        obstacle_region: ask.obstacle_region(&scene.workspace),
         ..PlanOptions::default()
     };
     let plan = planner
@@ -283,10 +316,17 @@ pub fn plan_locally(scene: &SceneFiles, ask: &Ask) -> Result<PlannedScene> {
         })
         .collect();
     let (objects, table) = obstacles(&boxes, plan.table.normal, plan.table.offset_m, &scene.workspace);
+    let outside = plan
+        .obstacles
+        .iter()
+        .enumerate()
+        .map(|(k, o)| (outside_box(k, o.min, o.max), o.object_id.map(|id| id as usize)))
+        .collect();
     Ok(PlannedScene {
         grasps,
         objects,
         table,
+        outside,
         planner: format!("in-process {}", net.contract().model_version),
     })
 }
@@ -340,6 +380,10 @@ pub fn plan_remotely(
             max_m: r.max_m,
             min_axis_m: r.min_axis_m,
         }),
+        obstacle_region: ask.obstacle_region(&scene.workspace).map(|w| pb::Workspace {
+            min: Some(message(&w.min.coords)),
+            max: Some(message(&w.max.coords)),
+        }),
         ..scene.request.clone()
     };
     let (response, info) = runtime.block_on(async {
@@ -387,10 +431,25 @@ pub fn plan_remotely(
         .table
         .ok_or_else(|| Error::Protocol("the planner sent no table plane".into()))?;
     let (objects, table) = obstacles(&boxes, vector(table.normal), table.offset_m, &scene.workspace);
+    let outside = response
+        .obstacles
+        .iter()
+        .enumerate()
+        .map(|(k, o)| {
+            let (min, max) = (vector(o.min), vector(o.max));
+            if !(min.iter().chain(max.iter()).all(|v| v.is_finite()) && (0..3).all(|i| min[i] <= max[i])) {
+                return Err(Error::Protocol(format!(
+                    "the planner sent a bad obstacle box: {o:?}"
+                )));
+            }
+            Ok((outside_box(k, min, max), o.object_id.map(|id| id as usize)))
+        })
+        .collect::<Result<Vec<_>>>()?;
     Ok(PlannedScene {
         grasps,
         objects,
         table,
+        outside,
         planner: format!("{} ({} at {endpoint})", info.model_version, info.backend),
     })
 }

@@ -3,8 +3,8 @@
 
 use mvgrasp_core::{
     ApproachCone, ArmReach, Channel, CloudFrame, DebugView, DepthEncoding, DepthFrame, DetectedObject, Grasp,
-    Gripper, Intrinsics, ModelContract, Plan, PlanOptions, PointCloud, SceneInput, SensorInput, StageTimings,
-    TablePlane, ViewAxis, ViewPolicy, Workspace, pose_from_parts,
+    Gripper, Intrinsics, ModelContract, OutsideObstacle, Plan, PlanOptions, PointCloud, SceneInput,
+    SensorInput, StageTimings, TablePlane, ViewAxis, ViewPolicy, Workspace, pose_from_parts,
 };
 use mvgrasp_proto::v1 as pb;
 use nalgebra::{Isometry3, Vector3};
@@ -31,17 +31,7 @@ pub fn scene_of<'a>(request: &'a pb::PlanGraspsRequest, limits: &Limits) -> Resu
     let world_from_camera = pose_of("world_from_camera", pose)?;
     let workspace = match &request.workspace {
         None => Workspace::new([-UNBOUNDED_M; 3], [UNBOUNDED_M; 3])?,
-        Some(w) => {
-            let min = w
-                .min
-                .as_ref()
-                .ok_or_else(|| Error::invalid("workspace.min", "required"))?;
-            let max = w
-                .max
-                .as_ref()
-                .ok_or_else(|| Error::invalid("workspace.max", "required"))?;
-            Workspace::new(array_of(min), array_of(max))?
-        }
+        Some(w) => box_of("workspace", w)?,
     };
     Ok(SceneInput {
         sensor,
@@ -120,6 +110,19 @@ fn cloud_of<'a>(cloud: &'a pb::PointCloud, limits: &Limits) -> Result<PointCloud
         xyz: &cloud.xyz,
         frame,
     })
+}
+
+/// A request's world-frame box, errors naming `field`.
+fn box_of(field: &'static str, w: &pb::Workspace) -> Result<Workspace> {
+    let min = w
+        .min
+        .as_ref()
+        .ok_or_else(|| Error::invalid(format!("{field}.min"), "required"))?;
+    let max = w
+        .max
+        .as_ref()
+        .ok_or_else(|| Error::invalid(format!("{field}.max"), "required"))?;
+    Ok(Workspace::named(field, array_of(min), array_of(max))?)
 }
 
 fn array_of(v: &pb::Vector3) -> [f64; 3] {
@@ -201,6 +204,11 @@ pub fn options_of(request: &pb::PlanGraspsRequest, defaults: &RequestDefaults) -
                 )?)
             }
         },
+        obstacle_region: request
+            .obstacle_region
+            .as_ref()
+            .map(|w| box_of("obstacle_region", w))
+            .transpose()?,
     };
     options.validate()?;
     Ok(options)
@@ -346,6 +354,17 @@ pub fn response_of(
         ranked_after_turned_away: plan.ranked_after_turned_away as u32,
         outside_approach_cone: plan.outside_approach_cone as u32,
         out_of_reach: plan.out_of_reach as u32,
+        obstacles: plan.obstacles.iter().map(obstacle_message).collect(),
+        obstacles_dropped: plan.obstacles_dropped as u32,
+    }
+}
+
+fn obstacle_message(o: &OutsideObstacle) -> pb::Obstacle {
+    pb::Obstacle {
+        min: Some(vector(&o.min)),
+        max: Some(vector(&o.max)),
+        point_count: o.point_count as u32,
+        object_id: o.object_id,
     }
 }
 

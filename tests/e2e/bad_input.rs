@@ -319,6 +319,18 @@ fn cases() -> Vec<(&'static str, Code, &'static str, Edit)> {
             }),
         ),
         (
+            "inverted obstacle region",
+            Code::InvalidArgument,
+            "obstacle_region",
+            Box::new(|r| r.obstacle_region = workspace([1.0, 1.0, 1.0], [-1.0, -1.0, -1.0])),
+        ),
+        (
+            "obstacle region with a NaN corner",
+            Code::InvalidArgument,
+            "obstacle_region.max",
+            Box::new(|r| r.obstacle_region = workspace([-1.0, -1.0, -1.0], [f64::NAN, 1.0, 1.0])),
+        ),
+        (
             "too many pixels",
             Code::ResourceExhausted,
             "depth",
@@ -605,6 +617,14 @@ fn edges() -> Vec<(&'static str, Edit)> {
             Box::new(|r| r.arm_reach = reach([0.0; 3], 1e300, 0.0)),
         ),
         (
+            "obstacle region of 2 km",
+            Box::new(|r| r.obstacle_region = workspace([-1000.0; 3], [1000.0; 3])),
+        ),
+        (
+            "obstacle region far from the table",
+            Box::new(|r| r.obstacle_region = workspace([50.0, 50.0, 50.0], [51.0, 51.0, 51.0])),
+        ),
+        (
             "request id of 100 kB",
             Box::new(|r| r.request_id = "x".repeat(100_000)),
         ),
@@ -633,6 +653,16 @@ fn check_valid(name: &str, answer: &pb::PlanGraspsResponse) {
         );
     }
     assert!(answer.objects.len() <= 4096, "{name}");
+    for o in &answer.obstacles {
+        let (lo, hi) = (o.min.unwrap_or_default(), o.max.unwrap_or_default());
+        assert!(
+            [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z].iter().all(|v| v.is_finite())
+                && lo.x < hi.x
+                && lo.y < hi.y
+                && lo.z <= hi.z,
+            "{name}: {o:?}"
+        );
+    }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

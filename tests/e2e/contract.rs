@@ -133,6 +133,58 @@ async fn rendered_scenes_with_the_onnx_and_baseline_backends() {
 /// A box half outside the image: the service ranks the grasps whose pads
 /// reach past the border last and says how many they are.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn objects_outside_the_workspace_come_back_as_obstacle_boxes() {
+    let (server, mut client) = start(settings(BackendKind::Onnx)).await;
+    // Three columns of three, 13 cm apart; the workspace leaves out the
+    // column at x = -0.13, the obstacle region takes in the whole table.
+    let scene = grid_scene(0.0, 9, 3, 0.13);
+    let mut r = request(&scene, &Camera::orbit(Vector3::zeros(), 0.85, 55.0, -90.0));
+    let v = |x, y, z| Some(pb::Vector3 { x, y, z });
+    r.workspace = Some(pb::Workspace {
+        min: v(-0.065, -0.4, -0.05),
+        max: v(0.6, 0.4, 0.4),
+    });
+    let plain = client.plan(r.clone()).await.unwrap();
+    assert!(plain.obstacles.is_empty());
+    assert_eq!(plain.objects.len(), 6);
+    r.obstacle_region = Some(pb::Workspace {
+        min: v(-0.6, -0.4, -0.05),
+        max: v(0.6, 0.4, 0.5),
+    });
+    let answer = client.plan(r.clone()).await.unwrap();
+    assert_eq!(answer.objects, plain.objects);
+    assert_eq!(
+        (answer.obstacles.len(), answer.obstacles_dropped),
+        (3, 0),
+        "{:?}",
+        answer.obstacles
+    );
+    for (i, shape) in scene.shapes.iter().enumerate().filter(|(i, _)| i % 3 == 0) {
+        let Shape::Cuboid { center, half, .. } = shape else {
+            panic!("shape {i} of the grid's first column is a box")
+        };
+        let found = answer.obstacles.iter().any(|o| {
+            let (lo, hi) = (o.min.unwrap(), o.max.unwrap());
+            (lo.x..=hi.x).contains(&center.x)
+                && (lo.y..=hi.y).contains(&center.y)
+                && (hi.z - 2.0 * half.z).abs() < 0.005
+                && lo.z.abs() < 0.002
+                && hi.x < -0.065 + 0.01
+                && o.object_id.is_none()
+        });
+        assert!(found, "shape {i} at {center:?}: {:?}", answer.obstacles);
+    }
+    // A region with a corner missing is named.
+    r.obstacle_region = Some(pb::Workspace {
+        min: None,
+        max: v(0.6, 0.4, 0.5),
+    });
+    let err = client.plan(r).await.unwrap_err().to_string();
+    assert!(err.contains("obstacle_region.min"), "{err}");
+    server.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn grasps_past_the_image_border_come_last_and_are_counted() {
     let (server, mut client) = start(settings(BackendKind::Baseline)).await;
     // Straight down from 0.7 m, 160 x 120 px at 150 px: the table is seen

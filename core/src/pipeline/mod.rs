@@ -32,10 +32,14 @@ use crate::decode::{
 use crate::error::{Error, Result};
 use crate::infer::{GraspMaps, GraspNet, ModelContract, NORMALISATION_CUBE_V1, ViewBatch};
 use crate::object::{ObjectFrame, object_frame};
-use crate::segment::{ImagePoints, euclidean_clusters, fit_table, fixed_order, split_at_creases};
+use crate::segment::{
+    ImagePoints, continued_objects, euclidean_clusters, fit_table, fixed_order, outside_obstacles,
+    split_at_creases,
+};
 use crate::select::select_views;
 use crate::sensor::{
     BlockMask, FieldOfView, SensorInput, random_world_points, world_points, world_points_above,
+    world_points_outside,
 };
 use crate::view::{OrthoView, ViewAxis};
 
@@ -157,6 +161,41 @@ impl Planner {
             ..
         } = self.segment_timed(scene, &mut timings)?;
         let mut clock = Stopwatch::start();
+        let obstacles = match &options.obstacle_region {
+            None => (Vec::new(), 0),
+            Some(region) => {
+                let config = &self.config.obstacles;
+                let half_space = table.above(self.config.table.object_min_height_m);
+                let outside = world_points_outside(
+                    &scene.sensor,
+                    &scene.world_from_camera,
+                    region,
+                    &scene.workspace,
+                    &half_space,
+                    config.stride,
+                )?;
+                let (mut boxes, dropped) = outside_obstacles(&outside, &table, config);
+                let bounds: Vec<[f64; 4]> = clusters
+                    .iter()
+                    .map(|c| {
+                        c.iter().fold(
+                            [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY],
+                            |b, &i| {
+                                let p = above[i as usize];
+                                let (x, y) = (f64::from(p[0]), f64::from(p[1]));
+                                [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)]
+                            },
+                        )
+                    })
+                    .collect();
+                continued_objects(&mut boxes, &bounds, config.cell_m);
+                (boxes, dropped)
+            }
+        };
+        // Counted with the points above the table (the stage laps, not adds).
+        let mut outside_time = Duration::ZERO;
+        clock.lap(&mut outside_time);
+        timings.sensor_objects += outside_time;
 
         let camera = Point3::from(scene.world_from_camera.translation.vector);
         let framed: Vec<(ObjectFrame, Vec<[f32; 3]>)> = clusters
@@ -233,6 +272,7 @@ impl Planner {
             covered: vec![false; objects.len()],
             objects,
             table,
+            obstacles,
             view,
             inferred,
             batch,
@@ -455,6 +495,7 @@ impl Planner {
         let Prepared {
             objects,
             table,
+            obstacles: (obstacles, obstacles_dropped),
             options,
             mut timings,
             ..
@@ -504,6 +545,8 @@ impl Planner {
                 })
                 .collect(),
             table,
+            obstacles,
+            obstacles_dropped,
             timings,
             debug_views,
         })

@@ -6,7 +6,7 @@ use crate::decode::{DecodeConfig, HandConfig};
 use crate::error::{Error, Result};
 use crate::geometry::Workspace;
 use crate::gripper::Gripper;
-use crate::segment::{ClusterConfig, TableConfig};
+use crate::segment::{ClusterConfig, ObstacleConfig, TableConfig};
 use crate::select::ViewPolicy;
 use crate::sensor::SensorInput;
 use crate::view::ViewAxis;
@@ -49,6 +49,10 @@ pub struct PlanOptions {
     /// object whose views give none goes on to its next view under the
     /// cascade.
     pub arm_reach: Option<ArmReach>,
+    /// What stands on the table inside this box but outside the scene's
+    /// workspace is reported as obstacle boxes ([`Plan::obstacles`](super::Plan::obstacles)), not
+    /// planned; `None`: nothing outside the workspace is looked at.
+    pub obstacle_region: Option<Workspace>,
 }
 
 /// A cone of approach directions (world frame).
@@ -200,6 +204,7 @@ impl Default for PlanOptions {
             view_cascade: true,
             approach_cone: None,
             arm_reach: None,
+            obstacle_region: None,
         }
     }
 }
@@ -236,6 +241,8 @@ pub struct PlannerConfig {
     pub views: Vec<ViewAxis>,
     /// At most this many grasps per object.
     pub max_grasps_per_object: usize,
+    /// The obstacle boxes of [`PlanOptions::obstacle_region`].
+    pub obstacles: ObstacleConfig,
 }
 
 impl Default for PlannerConfig {
@@ -247,6 +254,7 @@ impl Default for PlannerConfig {
             hand: HandConfig::default(),
             views: ViewAxis::ALL.to_vec(),
             max_grasps_per_object: 3,
+            obstacles: ObstacleConfig::default(),
         }
     }
 }

@@ -4,7 +4,7 @@ use std::time::Duration;
 
 use crate::decode::Grasp;
 use crate::object::ObjectFrame;
-use crate::segment::TablePlane;
+use crate::segment::{OutsideObstacle, TablePlane};
 use crate::view::{OrthoView, ViewAxis};
 
 /// Wall time of each stage.
@@ -14,7 +14,8 @@ pub struct StageTimings {
     pub sensor: Duration,
     /// Table plane fit.
     pub table: Duration,
-    /// Block mask, then world points above the table at full resolution.
+    /// Block mask, then world points above the table at full resolution
+    /// (and the obstacle boxes outside the workspace, when asked for).
     pub sensor_objects: Duration,
     /// Euclidean clustering, then the crease split.
     pub cluster: Duration,
@@ -185,6 +186,12 @@ pub struct Plan {
     pub objects: Vec<DetectedObject>,
     /// The table the objects stand on.
     pub table: TablePlane,
+    /// What stands on the table inside [`PlanOptions::obstacle_region`](super::PlanOptions::obstacle_region)
+    /// but outside the workspace, as boxes, most points first (empty
+    /// without a region).
+    pub obstacles: Vec<OutsideObstacle>,
+    /// Obstacle boxes past [`ObstacleConfig::max_obstacles`](crate::segment::ObstacleConfig::max_obstacles), not reported.
+    pub obstacles_dropped: usize,
     /// Stage timings.
     pub timings: StageTimings,
     /// Views and maps, when asked for.

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use crate::decode::{Grasp, Ranked};
 use crate::infer::{GraspMaps, ViewBatch};
-use crate::segment::TablePlane;
+use crate::segment::{OutsideObstacle, TablePlane};
 use crate::sensor::FieldOfView;
 use crate::view::OrthoView;
 
@@ -22,6 +22,8 @@ pub(super) struct PreparedObject {
 pub struct Prepared {
     pub(super) objects: Vec<PreparedObject>,
     pub(super) table: TablePlane,
+    /// What stands outside the workspace, and the boxes past the cap.
+    pub(super) obstacles: (Vec<OutsideObstacle>, usize),
     /// Where the camera looked (depth images; a cloud has no border).
     pub(super) view: Option<FieldOfView>,
     /// `(object index, view index)` of each batch entry.

@@ -18,7 +18,7 @@ pub use input::{
     WorldCloud,
 };
 pub use intrinsics::Intrinsics;
-pub use sampling::{BlockMask, random_world_points, world_points, world_points_above};
+pub use sampling::{BlockMask, random_world_points, world_points, world_points_above, world_points_outside};
 
 #[cfg(test)]
 mod tests {

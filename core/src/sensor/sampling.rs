@@ -127,6 +127,30 @@ pub fn world_points_above(
     convert(input, world_from_camera, &keep, sampling)
 }
 
+/// Points inside `region` and `above` but outside `workspace`, on a grid of
+/// every `stride`-th row and column (every `stride^2`-th point of a cloud):
+/// what stands on the rest of the table, for the obstacle boxes. The frame
+/// was checked by the passes before; a region that keeps no point is an
+/// empty answer, not an error.
+pub fn world_points_outside(
+    input: &SensorInput<'_>,
+    world_from_camera: &Isometry3<f64>,
+    region: &Workspace,
+    workspace: &Workspace,
+    above: &Above,
+    stride: usize,
+) -> Result<Vec<[f32; 3]>> {
+    let keep = Keep::new(region, Some(above));
+    let sampling = Sampling::Grid {
+        stride: stride.max(1),
+        pixels: false,
+    };
+    let mut cloud = convert(input, world_from_camera, &keep, sampling)?;
+    let inner = Keep::new(workspace, None);
+    cloud.points.retain(|p| !inner.inside(p));
+    Ok(cloud.points)
+}
+
 /// Blocks of `stride x stride` pixels of a depth image that are worth a
 /// full-resolution look: those whose corner pixel stands above the table,
 /// and their 8 neighbours (so object edges between samples are not lost).

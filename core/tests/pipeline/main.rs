@@ -5,6 +5,7 @@
 mod decoding;
 mod hand;
 mod inputs;
+mod obstacles;
 mod properties;
 mod scene;
 mod scenes;

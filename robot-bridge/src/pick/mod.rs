@@ -150,6 +150,10 @@ pub struct PickConfig {
     pub max_joint_step: f64,
     /// Fixed obstacles of the cell (table, basket), world frame.
     pub obstacles: Vec<BoxObstacle>,
+    /// Parts of detected objects the workspace's border cut off (the
+    /// planner's obstacle boxes with an `object_id`), by object index: a
+    /// fixed obstacle for every grasp but those of that object.
+    pub object_parts: Vec<(usize, BoxObstacle)>,
     /// The arm's collision geometry.
     pub arm_model: ArmModel,
     /// Check the fingers against the other detected objects' boxes on the
@@ -203,6 +207,7 @@ impl Default for PickConfig {
             tool_accel: 0.5,
             max_joint_step: 0.35,
             obstacles: Vec::new(),
+            object_parts: Vec::new(),
             arm_model: ArmModel::default(),
             check_fingers_near_grasp: false,
             check_palm_near_grasp: false,
@@ -270,6 +275,42 @@ pub struct PickPlan {
 }
 
 impl PickConfig {
+    /// Adds the boxes the planner saw outside its workspace (`seen`, each
+    /// with the detected object it continues, if any) to the fixed
+    /// obstacles, leaving out those that are the cell itself
+    /// ([`crate::collision::foreign_obstacles`], the arm at `current`); a
+    /// box that continues an object goes to [`Self::object_parts`]. Returns
+    /// those left out and why.
+    pub fn add_seen_obstacles(
+        &mut self,
+        arm: &Ur5e,
+        seen: &[(BoxObstacle, Option<usize>)],
+        current: &Joints,
+    ) -> Vec<(String, &'static str)> {
+        let boxes: Vec<BoxObstacle> = seen.iter().map(|(o, _)| o.clone()).collect();
+        let (kept, left_out) = crate::collision::foreign_obstacles(
+            &boxes,
+            &self.obstacles,
+            self.world_from_base,
+            &self.arm_model,
+            arm,
+            current,
+            crate::collision::BASE_COLUMN_RADIUS_M,
+        );
+        // `kept` keeps `seen`'s order: match each back to its object by name.
+        for o in kept {
+            match seen
+                .iter()
+                .find(|(s, _)| s.name == o.name)
+                .and_then(|(_, object)| *object)
+            {
+                Some(k) => self.object_parts.push((k, o)),
+                None => self.obstacles.push(o),
+            }
+        }
+        left_out
+    }
+
     /// Whether `grasp` tries the spot of `failed` again: centres within
     /// `failed_radius_m`, approach and closing directions within
     /// `failed_angle_deg` (a parallel jaw closes the same either way round).

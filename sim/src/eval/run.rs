@@ -16,6 +16,7 @@ pub fn plan_options(setting: &Setting, seed: u64, gripper: &GripperModel) -> Pla
         view_cascade: true,
         approach_cone: None,
         arm_reach: None,
+        obstacle_region: None,
     }
 }
 
