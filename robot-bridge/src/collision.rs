@@ -161,9 +161,9 @@ impl HandModel {
 /// capsules leave out (m).
 pub const BASE_COLUMN_RADIUS_M: f64 = 0.1;
 
-/// The boxes the planner saw outside its workspace
-/// (`PlanGraspsResponse.obstacles`) that are not the cell itself, and the
-/// rest by why they were left out. A box is taken for part of the cell when
+/// Why each box the planner saw outside its workspace
+/// (`PlanGraspsResponse.obstacles`) is the cell itself, in `seen`'s order;
+/// `None`: it is not, and the arm keeps clear of it. A box is taken for part of the cell when
 /// it meets one of `cell`'s obstacles other than the table (the basket and
 /// what lies in it), when the arm and hand at `current` touch it (the arm
 /// seen in the frame), or when it covers the base axis within `base_radius_m`
@@ -176,10 +176,9 @@ pub fn foreign_obstacles(
     arm: &Ur5e,
     current: &Joints,
     base_radius_m: f64,
-) -> (Vec<BoxObstacle>, Vec<(String, &'static str)>) {
+) -> Vec<Option<&'static str>> {
     let base = world_from_base.translation.vector;
-    let mut kept = Vec::new();
-    let mut left_out = Vec::new();
+    let mut verdicts = Vec::with_capacity(seen.len());
     for o in seen {
         let shape = Obstacle::new(o, false);
         let meets_cell = cell.iter().filter(|c| c.name != "table").any(|c| {
@@ -203,12 +202,9 @@ pub fn foreign_obstacles(
         } else {
             None
         };
-        match why {
-            Some(why) => left_out.push((o.name.clone(), why)),
-            None => kept.push(o.clone()),
-        }
+        verdicts.push(why);
     }
-    (kept, left_out)
+    verdicts
 }
 
 /// Obstacles in the world, and where the robot stands.
@@ -617,7 +613,7 @@ mod tests {
             cube("on the base", 0.0, 0.0, 0.05),
             cube("on the table", 0.0, -0.6, 0.05),
         ];
-        let (kept, left_out) = foreign_obstacles(
+        let verdicts = foreign_obstacles(
             &seen,
             &cell,
             Isometry3::identity(),
@@ -626,16 +622,14 @@ mod tests {
             &HOME,
             BASE_COLUMN_RADIUS_M,
         );
+        // In `seen`'s order: the basket, the wrist, the base; the table's kept.
         assert_eq!(
-            kept.iter().map(|o| o.name.as_str()).collect::<Vec<_>>(),
-            ["on the table"]
-        );
-        assert_eq!(
-            left_out,
+            verdicts,
             [
-                ("in the basket".to_owned(), "meets the cell's fixed obstacles"),
-                ("at the wrist".to_owned(), "touches the arm where it stands"),
-                ("on the base".to_owned(), "over the robot's base"),
+                Some("meets the cell's fixed obstacles"),
+                Some("touches the arm where it stands"),
+                Some("over the robot's base"),
+                None,
             ]
         );
     }

@@ -238,22 +238,19 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                         .iter()
                         .enumerate()
                         .map(|(k, o)| {
-                            let (min, max) = (Vector3::from(o.min), Vector3::from(o.max));
-                            if !(min.iter().chain(max.iter()).all(|v| v.is_finite())
-                                && (0..3).all(|i| min[i] <= max[i]))
-                            {
-                                return Err(Error::InvalidInput {
+                            let b = outside_box(k, Vector3::from(o.min), Vector3::from(o.max)).ok_or_else(
+                                || Error::InvalidInput {
                                     field: "scene.obstacles",
                                     reason: format!("{o:?}: finite corners, min <= max"),
-                                });
-                            }
+                                },
+                            )?;
                             if o.object.is_some_and(|i| i >= scene.detected.len()) {
                                 return Err(Error::InvalidInput {
                                     field: "scene.obstacles",
                                     reason: format!("{o:?}: `object` is not an index of `detected`"),
                                 });
                             }
-                            Ok((outside_box(k, min, max), o.object))
+                            Ok((b, o.object))
                         })
                         .collect::<Result<Vec<_>>>()?;
                     crate::ur5e::check_joints("current", &plan.current)?;

@@ -247,16 +247,20 @@ impl Ask {
     }
 }
 
-/// An obstacle box of the planner (world, axis-aligned) as the bridge's box.
-pub(crate) fn outside_box(index: usize, min: Vector3<f64>, max: Vector3<f64>) -> BoxObstacle {
-    BoxObstacle {
+/// An obstacle box of the planner (world, axis-aligned) as the bridge's
+/// box; `None` unless its corners are finite and `min <= max`.
+pub(crate) fn outside_box(index: usize, min: Vector3<f64>, max: Vector3<f64>) -> Option<BoxObstacle> {
+    if !(min.iter().chain(max.iter()).all(|v| v.is_finite()) && (0..3).all(|i| min[i] <= max[i])) {
+        return None;
+    }
+    Some(BoxObstacle {
         name: format!("obstacle {index}"),
         world_from_box: Isometry3::from_parts(
             Translation3::from((min + max) / 2.0),
             UnitQuaternion::identity(),
         ),
         half_extents_m: (max - min) / 2.0,
-    }
+    })
 }
 
 /// `v` as a message.
@@ -320,7 +324,8 @@ pub fn plan_locally(scene: &SceneFiles, ask: &Ask) -> Result<PlannedScene> {
         .obstacles
         .iter()
         .enumerate()
-        .map(|(k, o)| (outside_box(k, o.min, o.max), o.object_id.map(|id| id as usize)))
+        // The planner's own boxes: finite, min <= max.
+        .filter_map(|(k, o)| Some((outside_box(k, o.min, o.max)?, o.object_id.map(|id| id as usize))))
         .collect();
     Ok(PlannedScene {
         grasps,
@@ -436,13 +441,9 @@ pub fn plan_remotely(
         .iter()
         .enumerate()
         .map(|(k, o)| {
-            let (min, max) = (vector(o.min), vector(o.max));
-            if !(min.iter().chain(max.iter()).all(|v| v.is_finite()) && (0..3).all(|i| min[i] <= max[i])) {
-                return Err(Error::Protocol(format!(
-                    "the planner sent a bad obstacle box: {o:?}"
-                )));
-            }
-            Ok((outside_box(k, min, max), o.object_id.map(|id| id as usize)))
+            let b = outside_box(k, vector(o.min), vector(o.max))
+                .ok_or_else(|| Error::Protocol(format!("the planner sent a bad obstacle box: {o:?}")))?;
+            Ok((b, o.object_id.map(|id| id as usize)))
         })
         .collect::<Result<Vec<_>>>()?;
     Ok(PlannedScene {

@@ -288,7 +288,7 @@ impl PickConfig {
         current: &Joints,
     ) -> Vec<(String, &'static str)> {
         let boxes: Vec<BoxObstacle> = seen.iter().map(|(o, _)| o.clone()).collect();
-        let (kept, left_out) = crate::collision::foreign_obstacles(
+        let verdicts = crate::collision::foreign_obstacles(
             &boxes,
             &self.obstacles,
             self.world_from_base,
@@ -297,15 +297,12 @@ impl PickConfig {
             current,
             crate::collision::BASE_COLUMN_RADIUS_M,
         );
-        // `kept` keeps `seen`'s order: match each back to its object by name.
-        for o in kept {
-            match seen
-                .iter()
-                .find(|(s, _)| s.name == o.name)
-                .and_then(|(_, object)| *object)
-            {
-                Some(k) => self.object_parts.push((k, o)),
-                None => self.obstacles.push(o),
+        let mut left_out = Vec::new();
+        for ((o, object), why) in seen.iter().zip(verdicts) {
+            match (why, object) {
+                (Some(why), _) => left_out.push((o.name.clone(), why)),
+                (None, Some(k)) => self.object_parts.push((*k, o.clone())),
+                (None, None) => self.obstacles.push(o.clone()),
             }
         }
         left_out
