@@ -107,11 +107,8 @@ fn stages(c: &mut Criterion) {
     group.bench_function("4_cluster", |b| {
         b.iter(|| euclidean_clusters(black_box(&above), &config.cluster))
     });
-    let crease = config
-        .cluster
-        .crease
-        .clone()
-        .expect("the crease split is on by default");
+    // The crease split is off by default (`cluster.crease = None`): timed with its defaults.
+    let crease = config.cluster.crease.clone().unwrap_or_default();
     let axis = pose.rotation * Vector3::z();
     let origin = pose.translation.vector;
     let image = ImagePoints {
@@ -201,6 +198,25 @@ fn stages(c: &mut Criterion) {
             planner.finish(p, &maps).expect("finish")
         })
     });
+    // A workspace that cuts the outer columns (x = +-0.13 m) through, with
+    // and without the region around it: the obstacle boxes' pass and the
+    // rest of each cut object.
+    let narrow = camera.scene_input(
+        &bytes,
+        Workspace::new([-0.11, -0.4, -0.05], [0.11, 0.4, 0.4]).expect("workspace"),
+    );
+    let region = PlanOptions {
+        obstacle_region: Some(Workspace::new([-0.6, -0.4, -0.05], [0.6, 0.4, 0.5]).expect("region")),
+        ..PlanOptions::default()
+    };
+    for (name, options) in [
+        ("prepare_narrow_workspace", &options),
+        ("prepare_narrow_workspace_obstacle_region", &region),
+    ] {
+        group.bench_function(name, |b| {
+            b.iter(|| planner.prepare(black_box(&narrow), options).expect("prepare"))
+        });
+    }
     // The same end to end with the baseline's 96 px x 2.5 mm views, for comparison.
     let mut net_96 = MomentsNet::default();
     let planner_96 = Planner::new(PlannerConfig::default(), net_96.contract().clone()).expect("planner");

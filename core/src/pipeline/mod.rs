@@ -33,8 +33,7 @@ use crate::error::{Error, Result};
 use crate::infer::{GraspMaps, GraspNet, ModelContract, NORMALISATION_CUBE_V1, ViewBatch};
 use crate::object::{ObjectFrame, object_frame};
 use crate::segment::{
-    ImagePoints, continued_objects, euclidean_clusters, fit_table, fixed_order, outside_obstacles,
-    split_at_creases,
+    Detected, ImagePoints, euclidean_clusters, fit_table, fixed_order, outside_obstacles, split_at_creases,
 };
 use crate::select::select_views;
 use crate::sensor::{
@@ -174,22 +173,11 @@ impl Planner {
                     &half_space,
                     config.stride,
                 )?;
-                let (mut boxes, dropped) = outside_obstacles(&outside, &table, config);
-                let bounds: Vec<[f64; 4]> = clusters
-                    .iter()
-                    .map(|c| {
-                        c.iter().fold(
-                            [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY],
-                            |b, &i| {
-                                let p = above[i as usize];
-                                let (x, y) = (f64::from(p[0]), f64::from(p[1]));
-                                [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)]
-                            },
-                        )
-                    })
-                    .collect();
-                continued_objects(&mut boxes, &bounds, config.cell_m);
-                (boxes, dropped)
+                let detected = Detected {
+                    points: &above,
+                    objects: &clusters,
+                };
+                outside_obstacles(&outside, detected, &table, config)
             }
         };
         // Counted with the points above the table (the stage laps, not adds).

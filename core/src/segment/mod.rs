@@ -9,5 +9,5 @@ mod union_find;
 
 pub use cluster::{ClusterConfig, MAX_DENSE_CELLS, euclidean_clusters, fixed_order};
 pub use crease::{CreaseConfig, ImagePoints, Reattach, split_at_creases};
-pub use outside::{ObstacleConfig, OutsideObstacle, continued_objects, outside_obstacles};
+pub use outside::{Detected, ObstacleConfig, OutsideObstacle, outside_obstacles};
 pub use table::{TableConfig, TablePlane, fit_table};
