@@ -112,16 +112,17 @@ fn cloud_of<'a>(cloud: &'a pb::PointCloud, limits: &Limits) -> Result<PointCloud
     })
 }
 
+/// The part `part` of the message `field`, which must be set.
+fn required<'m, T>(field: &str, part: &str, value: &'m Option<T>) -> Result<&'m T> {
+    value
+        .as_ref()
+        .ok_or_else(|| Error::invalid(format!("{field}.{part}"), "required"))
+}
+
 /// A request's world-frame box, errors naming `field`.
 fn box_of(field: &'static str, w: &pb::Workspace) -> Result<Workspace> {
-    let min = w
-        .min
-        .as_ref()
-        .ok_or_else(|| Error::invalid(format!("{field}.min"), "required"))?;
-    let max = w
-        .max
-        .as_ref()
-        .ok_or_else(|| Error::invalid(format!("{field}.max"), "required"))?;
+    let min = required(field, "min", &w.min)?;
+    let max = required(field, "max", &w.max)?;
     Ok(Workspace::named(field, array_of(min), array_of(max))?)
 }
 
@@ -130,14 +131,8 @@ fn array_of(v: &pb::Vector3) -> [f64; 3] {
 }
 
 fn pose_of(field: &'static str, pose: &pb::Pose) -> Result<Isometry3<f64>> {
-    let p = pose
-        .position
-        .as_ref()
-        .ok_or_else(|| Error::invalid(format!("{field}.position"), "required"))?;
-    let q = pose
-        .orientation
-        .as_ref()
-        .ok_or_else(|| Error::invalid(format!("{field}.orientation"), "required"))?;
+    let p = required(field, "position", &pose.position)?;
+    let q = required(field, "orientation", &pose.orientation)?;
     Ok(pose_from_parts(field, array_of(p), [q.x, q.y, q.z, q.w])?)
 }
 

@@ -115,6 +115,12 @@ impl Extent {
 
 type Key = (i64, i64);
 
+/// A point's coordinates, when all are finite.
+fn finite(p: &[f32; 3]) -> Option<(f64, f64, f64)> {
+    let (x, y, z) = (f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+    (x.is_finite() && y.is_finite() && z.is_finite()).then_some((x, y, z))
+}
+
 /// The cell of `(x, y)`; saturating, so far-off points (a pose 1e30 m away)
 /// land in the edge cells.
 fn key(x: f64, y: f64, cell: f64) -> Key {
@@ -148,14 +154,11 @@ pub fn outside_obstacles(
 ) -> (Vec<OutsideObstacle>, usize) {
     let cell = config.cell_m.max(1e-3);
     let mut by_key: FxHashMap<Key, Extent> = FxHashMap::default();
-    for p in points {
-        let (x, y, z) = (f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
-        if x.is_finite() && y.is_finite() && z.is_finite() {
-            by_key
-                .entry(key(x, y, cell))
-                .or_insert(Extent::EMPTY)
-                .add(x, y, z);
-        }
+    for (x, y, z) in points.iter().filter_map(finite) {
+        by_key
+            .entry(key(x, y, cell))
+            .or_insert(Extent::EMPTY)
+            .add(x, y, z);
     }
     // A fixed order of the cells, so the answer does not depend on hashing.
     let mut keys: Vec<Key> = by_key.keys().copied().collect();
@@ -243,13 +246,9 @@ fn rests(
     for (id, members) in detected.objects.iter().enumerate() {
         let id = id as u32;
         for &i in members {
-            let Some(p) = detected.points.get(i as usize) else {
+            let Some((x, y, z)) = detected.points.get(i as usize).and_then(finite) else {
                 continue;
             };
-            let (x, y, z) = (f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
-            if !(x.is_finite() && y.is_finite() && z.is_finite()) {
-                continue;
-            }
             let k = key(x, y, cell);
             if !beside.contains(&k) {
                 continue;
