@@ -136,6 +136,15 @@ def obstacle_region(pb, lo, hi):
     return pb.Workspace(min=pb.Vector3(x=lo[0], y=lo[1], z=lo[2]), max=pb.Vector3(x=hi[0], y=hi[1], z=hi[2]))
 
 
+def capsule(pb, a, b, radius_m):
+    """A Capsule of the robot's body (`PlanGraspsRequest.robot_body`): the
+    segment a-b (world) swept by radius_m; the points within are left out.
+    `robot-bridge plan-jsonl` tells a UR5e's at its joints
+    (`{"robot_body": [q1..q6]}`)."""
+    return pb.Capsule(a=pb.Vector3(x=a[0], y=a[1], z=a[2]), b=pb.Vector3(x=b[0], y=b[1], z=b[2]),
+                      radius_m=radius_m)
+
+
 # Calls spread round robin over every address the target names; a unary call
 # that meets an unavailable replica (unreachable, gone mid-call, shutting
 # down) is sent up to twice more, and round robin sends it to the next

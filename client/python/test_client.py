@@ -225,6 +225,16 @@ def main():
                                                                       for _, hi_x, top in boxes),
               f"{len(halved_response.objects)} objects, boxes {boxes}")
 
+        # The same told that the left half is the robot's body (capsules
+        # along y filling x < 0 up to 0.4 m): nothing there is an obstacle
+        # any more, and the same objects are planned.
+        halved.robot_body.extend(mvgrasp_client.capsule(pb, (-0.25, -0.45, z), (-0.25, 0.45, z), 0.26)
+                                 for z in (0.0, 0.1, 0.2, 0.3, 0.4))
+        bodied = planner.PlanGrasps(halved, timeout=30)
+        check("the robot's body is no obstacle",
+              not bodied.obstacles and len(bodied.objects) == len(halved_response.objects),
+              f"{len(bodied.obstacles)} boxes, {len(bodied.objects)} objects")
+
         def reached(shoulder, max_m, min_axis_m):
             request = mvgrasp_client.plan_request(
                 pb, os.path.join(ROOT, "samples/table6/depth.png"), os.path.join(ROOT, "samples/table6/camera.json"),

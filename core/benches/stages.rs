@@ -16,8 +16,8 @@ use mvgrasp_core::segment::{ImagePoints, euclidean_clusters, fit_table, split_at
 use mvgrasp_core::select::view_entropy;
 use mvgrasp_core::sensor::{BlockMask, random_world_points, world_points_above};
 use mvgrasp_core::{
-    GraspNet, ModelContract, MomentsNet, OrthoView, PlanOptions, Planner, PlannerConfig, SensorInput,
-    ViewAxis, Workspace,
+    BodyCapsule, GraspNet, ModelContract, MomentsNet, OrthoView, PlanOptions, Planner, PlannerConfig,
+    SensorInput, ViewAxis, Workspace,
 };
 use nalgebra::{Point3, Vector3};
 
@@ -209,9 +209,33 @@ fn stages(c: &mut Criterion) {
         obstacle_region: Some(Workspace::new([-0.6, -0.4, -0.05], [0.6, 0.4, 0.5]).expect("region")),
         ..PlanOptions::default()
     };
+    // The same told a UR5e's body at home (the robot-bridge's 13 capsules
+    // for the referee's cell), its base at the region's border: every
+    // capsule meets the region, so every outside point is tested.
+    let body = PlanOptions {
+        robot_body: [
+            ([0.0, -0.45, 0.0], [0.0, -0.45, 0.162], 0.12),
+            ([0.12, -0.381, 0.162], [0.083, -0.317, 0.581], 0.09),
+            ([-0.031, -0.383, 0.581], [0.162, -0.717, 0.513], 0.08),
+            ([0.156, -0.721, 0.513], [0.272, -0.654, 0.513], 0.075),
+            ([0.272, -0.654, 0.513], [0.321, -0.74, 0.513], 0.075),
+            ([0.321, -0.74, 0.513], [0.321, -0.74, 0.413], 0.075),
+            ([0.0, -0.45, 0.162], [0.12, -0.381, 0.162], 0.09),
+            ([0.083, -0.317, 0.581], [-0.031, -0.383, 0.581], 0.08),
+            ([0.162, -0.717, 0.513], [0.156, -0.721, 0.513], 0.075),
+            ([0.321, -0.74, 0.313], [0.321, -0.74, 0.423], 0.09),
+            ([0.262, -0.638, 0.325], [0.38, -0.842, 0.325], 0.085),
+            ([0.277, -0.663, 0.211], [0.277, -0.663, 0.305], 0.058),
+            ([0.366, -0.817, 0.211], [0.366, -0.817, 0.305], 0.058),
+        ]
+        .map(|(a, b, r)| BodyCapsule::new(Vector3::from(a), Vector3::from(b), r).expect("capsule"))
+        .to_vec(),
+        ..region.clone()
+    };
     for (name, options) in [
         ("prepare_narrow_workspace", &options),
         ("prepare_narrow_workspace_obstacle_region", &region),
+        ("prepare_narrow_workspace_obstacle_region_robot_body", &body),
     ] {
         group.bench_function(name, |b| {
             b.iter(|| planner.prepare(black_box(&narrow), options).expect("prepare"))

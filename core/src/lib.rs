@@ -66,7 +66,8 @@ pub use pipeline::{
     PlannerConfig, Prepared, Refusals, SceneInput, Segmentation, StageTimings, ViewReport, approach_of,
 };
 pub use segment::{
-    ClusterConfig, CreaseConfig, ObstacleConfig, OutsideObstacle, Reattach, TableConfig, TablePlane,
+    BodyCapsule, ClusterConfig, CreaseConfig, ObstacleConfig, OutsideObstacle, Reattach, TableConfig,
+    TablePlane,
 };
 pub use select::ViewPolicy;
 pub use sensor::{CloudFrame, DepthEncoding, DepthFrame, FieldOfView, Intrinsics, PointCloud, SensorInput};

@@ -42,6 +42,10 @@ def parse(argv):
                    help="ask the planner for what stands this far around the workspace (and above it) as "
                         "obstacle boxes, and hand them to the robot-bridge, as its planner.obstacle_margin_m "
                         "does (default 0: not asked, as before 2026-12-01)")
+    p.add_argument("--robot-body", action="store_true",
+                   help="send each frame with the arm where it stands (the robot-bridge's capsules at its "
+                        "joints), so the planner leaves its points out of the objects and obstacle boxes, as "
+                        "the bridge's planner.robot_body does (default: not sent, as before 2026-12-01)")
     p.add_argument("--no-view-cascade", action="store_true",
                    help="ask for the paper's single pass over the policy's views (the ablation)")
     p.add_argument("--bin-fill-m", type=float, default=None, metavar="M",
@@ -116,7 +120,8 @@ def _init(args):
         args.server, args.policy, args.min_quality, args.max_grasps,
         view_cascade=False if args.no_view_cascade else None, approach_cone=args.approach_cone,
         arm_reach=_worker["bridge"].arm_reach() if args.arm_reach else None,
-        with_views=args.attempt_views is not None, obstacle_margin_m=args.obstacle_margin_m)
+        with_views=args.attempt_views is not None, obstacle_margin_m=args.obstacle_margin_m,
+        robot_body=args.robot_body)
     _worker["args"] = args
     _worker["renderers"] = {}
     if args.attempt_views:
@@ -202,7 +207,7 @@ def main(argv=None):
     meta = {**info, "suite": args.suite, "policy": args.policy, "min_quality": args.min_quality,
             "max_grasps": args.max_grasps, "view_cascade": not args.no_view_cascade,
             "approach_cone": args.approach_cone, "arm_reach": args.arm_reach,
-            "obstacle_margin_m": args.obstacle_margin_m, "seed": args.seed,
+            "obstacle_margin_m": args.obstacle_margin_m, "robot_body": args.robot_body, "seed": args.seed,
             "resolution": args.resolution, "noise": args.noise,
             "oracle": args.oracle, "bin_fill_m": args.bin_fill_m,
             "approach_clearance_m": args.approach_clearance_m, "failed_radius_m": args.failed_radius_m,

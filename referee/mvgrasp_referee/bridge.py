@@ -107,6 +107,14 @@ class Bridge:
             raise RuntimeError(answer["error"])
         return answer["arm_reach"]
 
+    def robot_body(self, q):
+        """The arm at joints `q` as capsules (dicts a, b, radius_m; world),
+        as the bridge tells the planner where it stands (`robot_body`)."""
+        answer = self.ask({"robot_body": [float(v) for v in q]})
+        if not answer["ok"]:
+            raise RuntimeError(answer["error"])
+        return answer["robot_body"]
+
     def plan(self, grasps, scene, current):
         """The bridge's pick for ranked `grasps` (dicts with position,
         orientation xyzw, width_m, quality, object) among the obstacles of

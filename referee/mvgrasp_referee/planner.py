@@ -29,7 +29,8 @@ class Planner:
     """A gRPC connection to the service, and the request options of a setting."""
 
     def __init__(self, address, policy="default", min_quality=None, max_grasps=10, timeout_s=30.0,
-                 view_cascade=None, approach_cone=None, arm_reach=None, with_views=False, obstacle_margin_m=0.0):
+                 view_cascade=None, approach_cone=None, arm_reach=None, with_views=False, obstacle_margin_m=0.0,
+                 robot_body=False):
         import grpc  # noqa: PLC0415
 
         if policy not in POLICIES:
@@ -54,6 +55,10 @@ class Planner:
         # for as obstacle boxes and handed to the bridge (0: not asked), as
         # the robot-bridge's planner.obstacle_margin_m asks for it.
         self.obstacle_region = obstacle_region(obstacle_margin_m)
+        # Whether each frame is sent with the arm where it stands (the
+        # bridge's capsules), as the robot-bridge's planner.robot_body does.
+        self.asks_robot_body = robot_body
+        self._client = client
         # The robot-bridge's answer to {"arm_reach": null} as the request's ArmReach, or None.
         self.arm_reach = None if arm_reach is None else client.arm_reach(
             self.pb, arm_reach["shoulder"], arm_reach["wrist_back_m"], arm_reach["approach_m"],
@@ -75,10 +80,11 @@ class Planner:
         return {"input_size_px": info.input_size_px, "pixel_size_m": info.pixel_size_m,
                 "normalisation": info.normalisation}
 
-    def plan(self, depth, pose, seed=0):
+    def plan(self, depth, pose, seed=0, robot_body=None):
         """Ranked grasps, detected objects and the table plane for one frame,
         and the call's wall time in ms; no grasps and the planner's `error`
-        for a frame it refuses as invalid."""
+        for a frame it refuses as invalid. `robot_body`: the arm's capsules
+        where it stands (the bridge's `robot_body` answer), left out."""
         import grpc  # noqa: PLC0415
 
         pb = self.pb
@@ -102,6 +108,8 @@ class Planner:
             (a0, b0, c0), (a1, b1, c1) = self.obstacle_region
             options["obstacle_region"] = pb.Workspace(min=pb.Vector3(x=a0, y=b0, z=c0),
                                                       max=pb.Vector3(x=a1, y=b1, z=c1))
+        if robot_body:
+            options["robot_body"] = [self._client.capsule(pb, c["a"], c["b"], c["radius_m"]) for c in robot_body]
         (x0, y0, z0), (x1, y1, z1) = WORKSPACE
         request = pb.PlanGraspsRequest(
             depth=pb.DepthImage(width=pose.width, height=pose.height, encoding=pb.DEPTH_ENCODING_FLOAT32_M,

@@ -145,7 +145,8 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
             if getattr(planner, "ground_truth", False):
                 plan = planner.plan_truth(cell, remaining)
             else:
-                plan = planner.plan(depth, pose, seed=seed * 1000 + attempt)
+                body = bridge.robot_body(cell.arm_q()) if getattr(planner, "asks_robot_body", False) else None
+                plan = planner.plan(depth, pose, seed=seed * 1000 + attempt, robot_body=body)
             entry = {"attempt": attempt, "plan_ms": round(plan["call_ms"], 2), "server_ms": round(plan["server_ms"], 2),
                      "detected": len(plan["objects"]), "grasps": len(plan["grasps"]), "unreachable": 0,
                      "refused": []}

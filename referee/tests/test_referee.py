@@ -226,6 +226,41 @@ class CellTest(unittest.TestCase):
         finally:
             b.close()
 
+    def test_the_body_the_bridge_tells_holds_the_simulated_arm(self):
+        """The capsules the bridge tells the planner (`robot_body`) hold the
+        centre of every geom of the MJCF arm and gripper, parked and at
+        random joints; a point 0.4 m beside the base is in none."""
+        b = bridge.Bridge(bridge_binary(), gripper.tcp_in_flange(self.cell))
+        c = self.cell
+        robot = [g for g in range(c.model.ngeom)
+                 if mujoco.mj_id2name(c.model, mujoco.mjtObj.mjOBJ_BODY, c.model.geom_bodyid[g]).startswith(
+                     ("arm/", "grip"))]
+        self.assertGreater(len(robot), 10)
+
+        def within(body, p):
+            for cap in body:
+                a, run = np.array(cap["a"]), np.array(cap["b"]) - np.array(cap["a"])
+                t = np.clip(np.dot(p - a, run) / max(np.dot(run, run), 1e-18), 0.0, 1.0)
+                if np.linalg.norm(p - (a + t * run)) <= cap["radius_m"]:
+                    return True
+            return False
+
+        parked = c.arm_q()
+        rng = np.random.default_rng(6)
+        try:
+            for q in [parked] + [parked + rng.uniform(-0.5, 0.5, 6) for _ in range(5)]:
+                c.set_arm(q)
+                mujoco.mj_kinematics(c.model, c.data)
+                body = b.robot_body(q)
+                outside = [mujoco.mj_id2name(c.model, mujoco.mjtObj.mjOBJ_BODY, c.model.geom_bodyid[g])
+                           for g in robot if not within(body, c.data.geom_xpos[g])]
+                self.assertEqual(outside, [], f"joints {np.round(q, 2)}")
+                base = cell.world_from_dh_base()[:3, 3]
+                self.assertFalse(within(body, base + np.array([0.4, 0.0, 0.05])))
+        finally:
+            c.set_arm(parked)
+            b.close()
+
     def test_the_reach_the_bridge_tells_holds_the_simulated_arm(self):
         """The shoulder the bridge tells the planner is the MJCF arm's; every
         pose of the simulated arm puts its wrist centre (0.0996 m behind the

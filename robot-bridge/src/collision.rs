@@ -18,6 +18,7 @@ use parry3d::query::intersection_test;
 use parry3d::shape::{Capsule, Cuboid};
 
 use crate::ur5e::{Joints, Ur5e, max_joint_move};
+use mvgrasp_core::BodyCapsule;
 use mvgrasp_core::rng::SplitMix64;
 
 /// A box in the world.
@@ -160,6 +161,13 @@ impl HandModel {
 /// The UR5e's base column (radius 75 mm, a margin on top), which the link
 /// capsules leave out (m).
 pub const BASE_COLUMN_RADIUS_M: f64 = 0.1;
+
+/// Added to every radius of the robot's body sent to the planner
+/// ([`CollisionWorld::robot_body`]), on top of the arm model's margin (m):
+/// the depth camera's noise, its calibration against the arm's, and the
+/// links' shells between the capsules (the referee's UR5e, rendered from
+/// 12 poses, shows points up to 5 mm outside them with 2 cm).
+pub const ROBOT_BODY_MARGIN_M: f64 = 0.03;
 
 /// Why each box the planner saw outside its workspace
 /// (`PlanGraspsResponse.obstacles`) is the cell itself, in `seen`'s order;
@@ -362,6 +370,51 @@ impl CollisionWorld {
         (capsules, boxes)
     }
 
+    /// The robot's body at `q` as capsules (world), for the planner to leave
+    /// its points out (`PlanOptions::robot_body`): the links and joint
+    /// housings as the checks take them, the base column up to the
+    /// shoulder ([`BASE_COLUMN_RADIUS_M`]), and each of the hand's boxes
+    /// within a capsule along its longest side; every radius grown by
+    /// [`ROBOT_BODY_MARGIN_M`].
+    pub fn robot_body(&self, arm: &Ur5e, q: &Joints) -> Vec<BodyCapsule> {
+        let (capsules, boxes) = self.shapes(arm, q);
+        let point = |v: Vector| Vector3::new(f64::from(v.x), f64::from(v.y), f64::from(v.z));
+        let capsule = |a: Vector3<f64>, b: Vector3<f64>, radius_m: f64| BodyCapsule {
+            a,
+            b,
+            radius_m: radius_m + ROBOT_BODY_MARGIN_M,
+        };
+        let frames = arm.forward_frames(q).map(|f| self.world_from_base * f);
+        let mut body = vec![capsule(
+            frames[0].translation.vector,
+            frames[1].translation.vector,
+            BASE_COLUMN_RADIUS_M,
+        )];
+        body.extend(
+            capsules
+                .iter()
+                .map(|c| capsule(point(c.segment.a), point(c.segment.b), f64::from(c.radius))),
+        );
+        for (pose, cuboid) in &boxes {
+            let h = cuboid.half_extents;
+            // The longest side is the axis; the other two half sizes span the radius.
+            let long = (0..3).max_by(|&i, &j| h[i].total_cmp(&h[j])).unwrap_or(2);
+            let mut end = Vector::ZERO;
+            end[long] = h[long];
+            let across = (0..3)
+                .filter(|&i| i != long)
+                .map(|i| h[i] * h[i])
+                .sum::<f32>()
+                .sqrt();
+            body.push(capsule(
+                point(pose.transform_point(end)),
+                point(pose.transform_point(-end)),
+                f64::from(across),
+            ));
+        }
+        body
+    }
+
     /// The first obstacle the arm at `q` touches, if any.
     pub fn collision(&self, arm: &Ur5e, q: &Joints) -> Option<&str> {
         let (capsules, boxes) = self.shapes(arm, q);
@@ -501,9 +554,11 @@ fn branch(tree: &[(Joints, usize)], mut index: usize) -> Vec<Joints> {
 mod tests {
     use std::f64::consts::PI;
 
+    use nalgebra::Point3;
+
     use super::*;
 
-    const HOME: Joints = [0.0, -PI / 2.0, PI / 2.0, -PI / 2.0, -PI / 2.0, 0.0];
+    use crate::ur5e::HOME;
 
     /// The planner checks grasps with its own hand (`mvgrasp_core`'s
     /// `HandConfig`); it must not let through what this model refuses near
@@ -540,6 +595,46 @@ mod tests {
         let mut down = HOME;
         down[1] = PI / 2.0;
         assert_eq!(world.collision(&arm, &down), Some("table"));
+    }
+
+    /// The body sent to the planner holds every DH origin, the middle of
+    /// each link, the housing, a finger and the base column, and nothing half a
+    /// metre off the arm; the planner's checks take it.
+    #[test]
+    fn the_robots_body_holds_the_arm_and_its_hand_where_it_stands() {
+        let arm = Ur5e::default();
+        let base = Isometry3::translation(0.0, 0.5, 0.0);
+        let world = CollisionWorld::new(base, &[], ArmModel::default());
+        for q in [HOME, [0.4, -1.2, 1.0, -1.4, -1.57, 0.3]] {
+            let body = world.robot_body(&arm, &q);
+            mvgrasp_core::segment::check_body(&body).unwrap();
+            let within = |p: Vector3<f64>| {
+                body.iter().any(|c| {
+                    let run = c.b - c.a;
+                    let t = ((p - c.a).dot(&run) / run.norm_squared().max(1e-18)).clamp(0.0, 1.0);
+                    (p - (c.a + t * run)).norm() <= c.radius_m
+                })
+            };
+            let frames = arm.forward_frames(&q).map(|f| base * f);
+            let mut inside: Vec<Vector3<f64>> = frames.iter().map(|f| f.translation.vector).collect();
+            // The housing, and a finger near its tip (open 0.14 m: the
+            // TCP between the pads is air, not the robot).
+            inside.push((frames[6] * Point3::new(0.0, 0.0, 0.05)).coords);
+            inside.push((frames[6] * Point3::new(0.089, 0.0, 0.22)).coords);
+            inside.push((base * Point3::new(0.07, 0.0, 0.05)).coords);
+            // The upper arm and the forearm, midway, beside their DH lines.
+            let model = ArmModel::default();
+            for i in 1..3 {
+                let beside = model.link_offset_m[i - 1] * (frames[i].rotation * Vector3::z());
+                inside.push((frames[i].translation.vector + frames[i + 1].translation.vector) / 2.0 + beside);
+            }
+            for p in inside {
+                assert!(within(p), "{q:?}: {p:?} outside the body");
+            }
+            for p in [Point3::new(0.5, 0.0, 0.05), Point3::new(0.0, -0.5, 0.05)].map(|p| (base * p).coords) {
+                assert!(!within(p), "{q:?}: {p:?} inside the body");
+            }
+        }
     }
 
     /// A UR's upper arm runs 0.138 m out along the shoulder axis from the

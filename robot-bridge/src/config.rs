@@ -138,6 +138,10 @@ pub struct PlannerSection {
     /// workspace (sideways and above it; m) as obstacle boxes, and keep the
     /// arm clear of those that are not the cell itself (0: not asked).
     pub obstacle_margin_m: f64,
+    /// Tell the planner where the robot's body stands as the frame is
+    /// taken (`PickConfig::robot_body`, the arm at the joints read before
+    /// planning), so its points are neither objects nor obstacle boxes.
+    pub robot_body: bool,
     /// PEM CA that signed the planner's certificate: call it over TLS.
     pub tls_ca: Option<std::path::PathBuf>,
     /// PEM certificate of this bridge (mutual TLS; with `tls_key`).
@@ -240,6 +244,7 @@ impl Default for BridgeConfig {
                 min_quality: 0.0,
                 arm_reach: true,
                 obstacle_margin_m: 0.5,
+                robot_body: true,
                 tls_ca: None,
                 tls_cert: None,
                 tls_key: None,
@@ -422,8 +427,9 @@ impl BridgeConfig {
     }
 
     /// What to ask of the planner: `pick.max_grasps`, `planner.min_quality`,
-    /// `planner.approach_cone` and, with `planner.arm_reach`, where `arm` reaches.
-    pub fn ask(&self, arm: &crate::ur5e::Ur5e) -> Result<crate::planner::Ask> {
+    /// `planner.approach_cone`, with `planner.arm_reach` where `arm`
+    /// reaches, and with `planner.robot_body` its body at `current`.
+    pub fn ask(&self, arm: &crate::ur5e::Ur5e, current: &crate::ur5e::Joints) -> Result<crate::planner::Ask> {
         Ok(crate::planner::Ask {
             max_grasps: self.pick.max_grasps,
             min_quality: self.planner.min_quality,
@@ -433,6 +439,10 @@ impl BridgeConfig {
                 false => None,
             },
             obstacle_margin_m: self.planner.obstacle_margin_m,
+            robot_body: match self.planner.robot_body {
+                true => self.pick_config()?.robot_body(arm, current),
+                false => Vec::new(),
+            },
         })
     }
 
@@ -556,20 +566,26 @@ mod tests {
     #[test]
     fn the_min_quality_asked_is_every_grasp_unless_set() {
         let arm = crate::ur5e::Ur5e::default();
-        assert_eq!(BridgeConfig::default().ask(&arm).unwrap().min_quality, 0.0);
+        assert_eq!(
+            BridgeConfig::default()
+                .ask(&arm, &crate::ur5e::HOME)
+                .unwrap()
+                .min_quality,
+            0.0
+        );
         let set = BridgeConfig::from_toml("[planner]\nmin_quality = 0.5\n").unwrap();
-        assert_eq!(set.ask(&arm).unwrap().min_quality, 0.5);
+        assert_eq!(set.ask(&arm, &crate::ur5e::HOME).unwrap().min_quality, 0.5);
     }
 
     #[test]
     fn the_arm_reach_is_asked_unless_turned_off() {
         let arm = crate::ur5e::Ur5e::default();
-        let on = BridgeConfig::default().ask(&arm).unwrap();
+        let on = BridgeConfig::default().ask(&arm, &crate::ur5e::HOME).unwrap();
         let reach = on.arm_reach.expect("on by default");
         // The documented cell: the base at (0, 0.5, 0), the shoulder over it.
         assert!((reach.shoulder - Vector3::new(0.0, 0.5, 0.1625)).norm() < 1e-12);
         assert_eq!(reach.approach_m, BridgeConfig::default().pick.pregrasp_m);
         let off = BridgeConfig::from_toml("[planner]\narm_reach = false\n").unwrap();
-        assert_eq!(off.ask(&arm).unwrap().arm_reach, None);
+        assert_eq!(off.ask(&arm, &crate::ur5e::HOME).unwrap().arm_reach, None);
     }
 }

@@ -13,6 +13,10 @@
 //!   "wrist_back_m", "approach_m", "max_m", "min_axis_m"}}`, where the arm
 //!   reaches as the planner's `ArmReach` takes it (`PickConfig::arm_reach`),
 //!   for a simulator that calls the planner itself;
+//! - `{"robot_body": [q1..q6]}` -> `{"ok": true, "robot_body": [{"a", "b",
+//!   "radius_m"}]}`, the arm at those joints as the planner's
+//!   `PlanGraspsRequest.robot_body` takes it (`PickConfig::robot_body`), so
+//!   a simulator asks the planner as `pick` does;
 //! - `{"plan": {"grasps": [...], "scene": {...}, "current": [q1..q6]}}`
 //!   -> `{"ok": true, "grasp_index": k, "steps": [...], "refused": [...]}`. Each
 //!   grasp is `{"position", "orientation", "width_m", "quality", "object"}` in
@@ -56,6 +60,9 @@ enum Request {
     /// Where the arm reaches, for the planner.
     #[serde(rename = "arm_reach")]
     ArmReach(()),
+    /// The robot's body at these joints, for the planner.
+    #[serde(rename = "robot_body")]
+    RobotBody(Joints),
     /// A pick for ranked grasps.
     #[serde(rename = "plan")]
     Plan(PlanRequest),
@@ -204,6 +211,21 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                 },
             }))
         }
+        Request::RobotBody(q) => {
+            crate::ur5e::check_joints("robot_body", &q)?;
+            let body: Vec<_> = config
+                .robot_body(arm, &q)
+                .iter()
+                .map(|c| {
+                    serde_json::json!({
+                        "a": [c.a.x, c.a.y, c.a.z],
+                        "b": [c.b.x, c.b.y, c.b.z],
+                        "radius_m": c.radius_m,
+                    })
+                })
+                .collect();
+            Ok(serde_json::json!({"ok": true, "robot_body": body}))
+        }
         Request::Order(order) => {
             let poses = |list: &[PoseJson], field| {
                 list.iter()
@@ -338,6 +360,25 @@ mod tests {
         for (i, want) in [p.x, p.y, p.z].iter().enumerate() {
             assert!((v["position"][i].as_f64().unwrap() - want).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn the_robot_body_is_the_pick_configs() {
+        let q = [0.1, -1.2, 1.0, -1.4, -1.5, 0.3];
+        let v = ask(&serde_json::json!({ "robot_body": q }).to_string());
+        assert_eq!(v["ok"], true, "{v}");
+        let want = PickConfig::default().robot_body(&Ur5e::default(), &q);
+        let got = v["robot_body"].as_array().unwrap();
+        assert_eq!(got.len(), want.len());
+        for (g, w) in got.iter().zip(&want) {
+            let close = |v: &serde_json::Value, want: f64| (v.as_f64().unwrap() - want).abs() < 1e-12;
+            for i in 0..3 {
+                assert!(close(&g["a"][i], w.a[i]) && close(&g["b"][i], w.b[i]), "{g}");
+            }
+            assert!(close(&g["radius_m"], w.radius_m), "{g}");
+        }
+        let bad = ask(r#"{"robot_body": [0.0, 0.0]}"#);
+        assert_eq!(bad["ok"], false, "{bad}");
     }
 
     #[test]

@@ -1,17 +1,12 @@
 //! `robot-bridge`: the UR5e bridge's command line.
 
-use std::f64::consts::FRAC_PI_2;
-
 use anyhow::{Context, bail};
 use clap::{Parser, Subcommand};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use robot_bridge::config::BridgeConfig;
 use robot_bridge::emulate::{Emulator, EmulatorPorts};
 use robot_bridge::pick::{GraspTarget, PickConfig, Step, plan_pick, urscript};
-use robot_bridge::ur5e::Ur5e;
-
-/// UR's usual home: upper arm up, forearm level, tool pointing down.
-const HOME: [f64; 6] = [0.0, -FRAC_PI_2, FRAC_PI_2, -FRAC_PI_2, -FRAC_PI_2, 0.0];
+use robot_bridge::ur5e::{HOME, Ur5e};
 
 #[derive(Parser)]
 #[command(
@@ -280,7 +275,26 @@ fn pick(
     use robot_bridge::rtde::RtdeClient;
 
     let scene = load_scene(depth, camera)?;
-    let ask = settings.ask(arm)?;
+    let robot = settings.robot.host.as_str();
+    let timeout = Duration::from_secs_f64(settings.robot.io_timeout_s);
+    let mut rtde = if dry_run {
+        None
+    } else {
+        Some(RtdeClient::connect_with_retry(
+            (robot, 30004),
+            125.0,
+            timeout,
+            3,
+            timeout / 4,
+        )?)
+    };
+    // Where the arm stands as the frame is planned: its body is left out of
+    // what the planner sees, and the pick starts from it.
+    let current = match rtde.as_mut() {
+        Some(client) => client.next_state()?.actual_q,
+        None => HOME,
+    };
+    let ask = settings.ask(arm, &current)?;
     let planned = match &settings.planner.endpoint {
         Some(endpoint) => plan_remotely(
             endpoint,
@@ -299,23 +313,6 @@ fn pick(
     );
     let mut config = settings.pick_config()?;
     config.obstacles.push(planned.table.clone());
-    let robot = settings.robot.host.as_str();
-    let timeout = Duration::from_secs_f64(settings.robot.io_timeout_s);
-    let mut rtde = if dry_run {
-        None
-    } else {
-        Some(RtdeClient::connect_with_retry(
-            (robot, 30004),
-            125.0,
-            timeout,
-            3,
-            timeout / 4,
-        )?)
-    };
-    let current = match rtde.as_mut() {
-        Some(client) => client.next_state()?.actual_q,
-        None => HOME,
-    };
     let left_out = config.add_seen_obstacles(arm, &planned.outside, &current);
     println!(
         "{} boxes outside the workspace kept clear of, {} taken for the cell",

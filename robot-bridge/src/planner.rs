@@ -13,8 +13,8 @@ use std::{path::Path, time::Duration};
 
 use mvgrasp_client::{PlannerClient, pb};
 use mvgrasp_core::{
-    ApproachCone, ArmReach, DepthEncoding, DepthFrame, GraspNet, Intrinsics, MomentsNet, PlanOptions,
-    Planner, PlannerConfig, SceneInput, SensorInput, Workspace, pose_from_parts,
+    ApproachCone, ArmReach, BodyCapsule, DepthEncoding, DepthFrame, GraspNet, Intrinsics, MomentsNet,
+    PlanOptions, Planner, PlannerConfig, SceneInput, SensorInput, Workspace, pose_from_parts,
 };
 use nalgebra::{Isometry3, Point3, Quaternion, Rotation3, Translation3, UnitQuaternion, Vector3};
 
@@ -209,7 +209,7 @@ pub(crate) fn obstacles(
 }
 
 /// What the bridge asks of either planner besides the frame.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Ask {
     /// At most this many grasps.
     pub max_grasps: usize,
@@ -222,6 +222,10 @@ pub struct Ask {
     /// What stands within this of the workspace, sideways and above it, is
     /// asked for as obstacle boxes (`planner.obstacle_margin_m`; 0: not).
     pub obstacle_margin_m: f64,
+    /// The robot's body where it stands as the frame is taken
+    /// (`PickConfig::robot_body`; `planner.robot_body`): its points are
+    /// neither objects nor obstacles. Empty: none.
+    pub robot_body: Vec<BodyCapsule>,
 }
 
 impl Ask {
@@ -233,6 +237,7 @@ impl Ask {
             approach_cone: None,
             arm_reach: None,
             obstacle_margin_m: 0.0,
+            robot_body: Vec::new(),
         }
     }
 
@@ -294,6 +299,7 @@ pub fn plan_locally(scene: &SceneFiles, ask: &Ask) -> Result<PlannedScene> {
         approach_cone: ask.approach_cone,
         arm_reach: ask.arm_reach,
         obstacle_region: ask.obstacle_region(&scene.workspace),
+        robot_body: ask.robot_body.clone(),
         ..PlanOptions::default()
     };
     let plan = planner
@@ -389,6 +395,15 @@ pub fn plan_remotely(
             min: Some(message(&w.min.coords)),
             max: Some(message(&w.max.coords)),
         }),
+        robot_body: ask
+            .robot_body
+            .iter()
+            .map(|c| pb::Capsule {
+                a: Some(message(&c.a)),
+                b: Some(message(&c.b)),
+                radius_m: c.radius_m,
+            })
+            .collect(),
         ..scene.request.clone()
     };
     let (response, info) = runtime.block_on(async {

@@ -2,9 +2,10 @@
 //! edge where every field is validated and named in errors.
 
 use mvgrasp_core::{
-    ApproachCone, ArmReach, Channel, CloudFrame, DebugView, DepthEncoding, DepthFrame, DetectedObject, Grasp,
-    Gripper, Intrinsics, ModelContract, OutsideObstacle, Plan, PlanOptions, PointCloud, SceneInput,
-    SensorInput, StageTimings, TablePlane, ViewAxis, ViewPolicy, Workspace, pose_from_parts,
+    ApproachCone, ArmReach, BodyCapsule, Channel, CloudFrame, DebugView, DepthEncoding, DepthFrame,
+    DetectedObject, Grasp, Gripper, Intrinsics, ModelContract, OutsideObstacle, Plan, PlanOptions,
+    PointCloud, SceneInput, SensorInput, StageTimings, TablePlane, ViewAxis, ViewPolicy, Workspace,
+    pose_from_parts,
 };
 use mvgrasp_proto::v1 as pb;
 use nalgebra::{Isometry3, Vector3};
@@ -126,6 +127,25 @@ fn box_of(field: &'static str, w: &pb::Workspace) -> Result<Workspace> {
     Ok(Workspace::named(field, array_of(min), array_of(max))?)
 }
 
+/// The capsules of `robot_body`, each end required (field `robot_body[i].a`);
+/// `PlanOptions::validate` checks the values and the count.
+fn body_of(capsules: &[pb::Capsule]) -> Result<Vec<BodyCapsule>> {
+    capsules
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let field = format!("robot_body[{i}]");
+            let a = required(&field, "a", &c.a)?;
+            let b = required(&field, "b", &c.b)?;
+            Ok(BodyCapsule {
+                a: Vector3::from(array_of(a)),
+                b: Vector3::from(array_of(b)),
+                radius_m: c.radius_m,
+            })
+        })
+        .collect()
+}
+
 fn array_of(v: &pb::Vector3) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
@@ -204,6 +224,7 @@ pub fn options_of(request: &pb::PlanGraspsRequest, defaults: &RequestDefaults) -
             .as_ref()
             .map(|w| box_of("obstacle_region", w))
             .transpose()?,
+        robot_body: body_of(&request.robot_body)?,
     };
     options.validate()?;
     Ok(options)

@@ -52,6 +52,19 @@ fn cone(axis: [f64; 3], half_angle_rad: f64) -> Option<pb::ApproachCone> {
     })
 }
 
+/// `n` copies of a capsule from `a` to `b` of `radius_m`, as a robot body.
+fn body(n: usize, a: [f64; 3], b: [f64; 3], radius_m: f64) -> Vec<pb::Capsule> {
+    let v = |[x, y, z]: [f64; 3]| Some(pb::Vector3 { x, y, z });
+    vec![
+        pb::Capsule {
+            a: v(a),
+            b: v(b),
+            radius_m,
+        };
+        n
+    ]
+}
+
 /// A UR5e-like reach, shoulder at `shoulder`, with its `max_m` and `min_axis_m`.
 fn reach(shoulder: [f64; 3], max_m: f64, min_axis_m: f64) -> Option<pb::ArmReach> {
     let [x, y, z] = shoulder;
@@ -329,6 +342,33 @@ fn cases() -> Vec<(&'static str, Code, &'static str, Edit)> {
             Code::InvalidArgument,
             "obstacle_region.max",
             Box::new(|r| r.obstacle_region = workspace([-1.0, -1.0, -1.0], [f64::NAN, 1.0, 1.0])),
+        ),
+        (
+            "robot body with a NaN end",
+            Code::InvalidArgument,
+            "robot_body[0].b",
+            Box::new(|r| r.robot_body = body(1, [0.0; 3], [f64::NAN, 0.0, 0.0], 0.1)),
+        ),
+        (
+            "robot body capsule with no end",
+            Code::InvalidArgument,
+            "robot_body[1].a",
+            Box::new(|r| {
+                r.robot_body = body(2, [0.0; 3], [0.0, 0.0, 0.5], 0.1);
+                r.robot_body[1].a = None;
+            }),
+        ),
+        (
+            "robot body capsule of radius 0",
+            Code::InvalidArgument,
+            "robot_body[0].radius_m",
+            Box::new(|r| r.robot_body = body(1, [0.0; 3], [0.0, 0.0, 0.5], 0.0)),
+        ),
+        (
+            "robot body of 65 capsules",
+            Code::InvalidArgument,
+            "robot_body",
+            Box::new(|r| r.robot_body = body(65, [0.0; 3], [0.0, 0.0, 0.5], 0.1)),
         ),
         (
             "too many pixels",
@@ -623,6 +663,14 @@ fn edges() -> Vec<(&'static str, Edit)> {
         (
             "obstacle region far from the table",
             Box::new(|r| r.obstacle_region = workspace([50.0, 50.0, 50.0], [51.0, 51.0, 51.0])),
+        ),
+        (
+            "robot body of 64 capsules of 2 m over the whole scene",
+            Box::new(|r| r.robot_body = body(64, [-1.0, -1.0, -1.0], [1.0, 1.0, 1.0], 2.0)),
+        ),
+        (
+            "robot body 1 km away",
+            Box::new(|r| r.robot_body = body(3, [1000.0; 3], [1000.0, 0.0, 0.0], 0.1)),
         ),
         (
             "request id of 100 kB",

@@ -130,8 +130,8 @@ async fn rendered_scenes_with_the_onnx_and_baseline_backends() {
     }
 }
 
-/// A box half outside the image: the service ranks the grasps whose pads
-/// reach past the border last and says how many they are.
+/// What stands outside the workspace comes back as boxes when a region is
+/// asked for, none of the robot's body told; a bad region or capsule is named.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn objects_outside_the_workspace_come_back_as_obstacle_boxes() {
     let (server, mut client) = start(settings(BackendKind::Onnx)).await;
@@ -174,6 +174,30 @@ async fn objects_outside_the_workspace_come_back_as_obstacle_boxes() {
         });
         assert!(found, "shape {i} at {center:?}: {:?}", answer.obstacles);
     }
+    // The first column told as the robot's body (a capsule up through each
+    // box): no box is left, and the objects planned are the same.
+    r.robot_body = scene
+        .shapes
+        .iter()
+        .step_by(3)
+        .map(|shape| {
+            let Shape::Cuboid { center, half, .. } = shape else {
+                panic!("the grid's first column holds boxes")
+            };
+            pb::Capsule {
+                a: v(center.x, center.y, 0.0),
+                b: v(center.x, center.y, 2.0 * half.z),
+                radius_m: half.xy().norm() + 0.02,
+            }
+        })
+        .collect();
+    let body = client.plan(r.clone()).await.unwrap();
+    assert!(body.obstacles.is_empty(), "{:?}", body.obstacles);
+    assert_eq!(body.objects, plain.objects);
+    r.robot_body[1].b = None;
+    let err = client.plan(r.clone()).await.unwrap_err().to_string();
+    assert!(err.contains("robot_body[1].b"), "{err}");
+    r.robot_body.clear();
     // A region with a corner missing is named.
     r.obstacle_region = Some(pb::Workspace {
         min: None,
@@ -184,6 +208,8 @@ async fn objects_outside_the_workspace_come_back_as_obstacle_boxes() {
     server.shutdown().await.unwrap();
 }
 
+/// A box half outside the image: the service ranks the grasps whose pads
+/// reach past the border last and says how many they are.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn grasps_past_the_image_border_come_last_and_are_counted() {
     let (server, mut client) = start(settings(BackendKind::Baseline)).await;

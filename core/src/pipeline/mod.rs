@@ -33,7 +33,8 @@ use crate::error::{Error, Result};
 use crate::infer::{GraspMaps, GraspNet, ModelContract, NORMALISATION_CUBE_V1, ViewBatch};
 use crate::object::{ObjectFrame, object_frame};
 use crate::segment::{
-    Detected, ImagePoints, euclidean_clusters, fit_table, fixed_order, outside_obstacles, split_at_creases,
+    BodyCapsule, BodyFilter, Detected, ImagePoints, euclidean_clusters, fit_table, fixed_order,
+    outside_obstacles, split_at_creases,
 };
 use crate::select::select_views;
 use crate::sensor::{
@@ -78,12 +79,18 @@ impl Planner {
     }
 
     /// Frame -> table -> the object points -> clusters (split at creases
-    /// for a depth image): the stages before the object frames.
+    /// for a depth image): the stages before the object frames, with no
+    /// robot body left out.
     pub fn segment(&self, scene: &SceneInput<'_>) -> Result<Segmentation> {
-        self.segment_timed(scene, &mut StageTimings::default())
+        self.segment_timed(scene, &[], &mut StageTimings::default())
     }
 
-    fn segment_timed(&self, scene: &SceneInput<'_>, timings: &mut StageTimings) -> Result<Segmentation> {
+    fn segment_timed(
+        &self,
+        scene: &SceneInput<'_>,
+        robot_body: &[BodyCapsule],
+        timings: &mut StageTimings,
+    ) -> Result<Segmentation> {
         let mut clock = Stopwatch::start();
 
         // The table is fitted on random readings; a grid pass then marks the
@@ -117,7 +124,8 @@ impl Planner {
             )?),
             _ => None,
         };
-        let above = world_points_above(sensor, pose, workspace, &half_space, near.as_ref())?;
+        let mut above = world_points_above(sensor, pose, workspace, &half_space, near.as_ref())?;
+        BodyFilter::new(robot_body, workspace).leave_out(&mut above.points, &mut above.pixels);
         clock.lap(&mut timings.sensor_objects);
 
         let cluster_config = &self.config.cluster;
@@ -158,14 +166,14 @@ impl Planner {
             points: above,
             clusters,
             ..
-        } = self.segment_timed(scene, &mut timings)?;
+        } = self.segment_timed(scene, &options.robot_body, &mut timings)?;
         let mut clock = Stopwatch::start();
         let obstacles = match &options.obstacle_region {
             None => (Vec::new(), 0),
             Some(region) => {
                 let config = &self.config.obstacles;
                 let half_space = table.above(self.config.table.object_min_height_m);
-                let outside = world_points_outside(
+                let mut outside = world_points_outside(
                     &scene.sensor,
                     &scene.world_from_camera,
                     region,
@@ -173,6 +181,7 @@ impl Planner {
                     &half_space,
                     config.stride,
                 )?;
+                BodyFilter::new(&options.robot_body, region).leave_out(&mut outside, &mut Vec::new());
                 let detected = Detected {
                     points: &above,
                     objects: &clusters,

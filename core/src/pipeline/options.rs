@@ -6,7 +6,7 @@ use crate::decode::{DecodeConfig, HandConfig};
 use crate::error::{Error, Result};
 use crate::geometry::Workspace;
 use crate::gripper::Gripper;
-use crate::segment::{ClusterConfig, ObstacleConfig, TableConfig};
+use crate::segment::{BodyCapsule, ClusterConfig, ObstacleConfig, TableConfig, check_body};
 use crate::select::ViewPolicy;
 use crate::sensor::SensorInput;
 use crate::view::ViewAxis;
@@ -53,6 +53,10 @@ pub struct PlanOptions {
     /// workspace is reported as obstacle boxes ([`Plan::obstacles`](super::Plan::obstacles)), not
     /// planned; `None`: nothing outside the workspace is looked at.
     pub obstacle_region: Option<Workspace>,
+    /// The robot's own body where it stands as the frame was taken (world
+    /// frame): the points within these capsules are left out of the
+    /// objects and of the obstacle boxes. Empty: none.
+    pub robot_body: Vec<BodyCapsule>,
 }
 
 /// A cone of approach directions (world frame).
@@ -205,14 +209,16 @@ impl Default for PlanOptions {
             approach_cone: None,
             arm_reach: None,
             obstacle_region: None,
+            robot_body: Vec::new(),
         }
     }
 }
 
 impl PlanOptions {
-    /// Checks the gripper and the limits.
+    /// Checks the gripper, the robot's body and the limits.
     pub fn validate(&self) -> Result<()> {
         self.gripper.validate()?;
+        check_body(&self.robot_body)?;
         if !(self.min_quality.is_finite() && (0.0..=1.0).contains(&self.min_quality)) {
             return Err(Error::invalid(
                 "min_quality",

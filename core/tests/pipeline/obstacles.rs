@@ -1,7 +1,7 @@
 //! What stands on the table outside the workspace comes back as obstacle
 //! boxes when the request gives a region, and is never planned.
 
-use mvgrasp_core::{GraspNet, MomentsNet, Plan, PlanOptions, Planner, PlannerConfig, Workspace};
+use mvgrasp_core::{BodyCapsule, GraspNet, MomentsNet, Plan, PlanOptions, Planner, PlannerConfig, Workspace};
 use nalgebra::Vector3;
 
 use crate::scene::{self, Camera, Rendered, Scene, Shape, labelled_points};
@@ -43,11 +43,14 @@ impl Cell {
 
     /// The plan, with the boxes of what stands in `region` outside the workspace.
     fn plan(&mut self, region: Option<Workspace>) -> Plan {
-        let input = self.camera.scene_input(&self.bytes, Self::workspace());
-        let options = PlanOptions {
+        self.plan_with(PlanOptions {
             obstacle_region: region,
             ..PlanOptions::default()
-        };
+        })
+    }
+
+    fn plan_with(&mut self, options: PlanOptions) -> Plan {
+        let input = self.camera.scene_input(&self.bytes, Self::workspace());
         self.planner.plan(&input, &options, &mut self.net).expect("plan")
     }
 }
@@ -174,4 +177,60 @@ fn a_neighbour_against_the_rest_of_a_cut_object_is_an_obstacle_for_it_too() {
         .find(|o| o.object_id.is_some())
         .expect("the rest");
     assert!(rest.max.x < 0.25, "the rest stops at the neighbour: {rest:?}");
+}
+
+#[test]
+fn the_robots_body_is_neither_an_object_nor_an_obstacle() {
+    let z = 0.0;
+    let mut cell = Cell::new(vec![
+        // Inside the workspace: an object to plan, and a link of the arm
+        // coming down into it (a rod 25 cm high).
+        Shape::standing_box(z, -0.05, 0.05, 0.3, [0.06, 0.04, 0.10]),
+        Shape::upright_cylinder(z, 0.1, -0.1, 0.03, 0.25),
+        // Outside: the arm's base column, and a cup beside it.
+        Shape::upright_cylinder(z, 0.42, 0.15, 0.05, 0.18),
+        Shape::upright_cylinder(z, 0.42, -0.15, 0.04, 0.10),
+    ]);
+    let capsule = |x: f64, y: f64, top: f64, radius: f64| {
+        BodyCapsule::new(Vector3::new(x, y, z), Vector3::new(x, y, top), radius).expect("capsule")
+    };
+    let plain = cell.plan(table_region());
+    assert_eq!(plain.objects.len(), 2, "{:?}", plain.objects);
+    assert_eq!(plain.obstacles.len(), 2, "{:?}", plain.obstacles);
+
+    let plan = cell.plan_with(PlanOptions {
+        obstacle_region: table_region(),
+        robot_body: vec![capsule(0.1, -0.1, 0.3, 0.05), capsule(0.42, 0.15, 0.2, 0.08)],
+        ..PlanOptions::default()
+    });
+    // The box alone is planned, and the cup alone is an obstacle.
+    assert_eq!(plan.objects.len(), 1, "{:?}", plan.objects);
+    let centre = plan.objects[0].frame.world_from_object.translation.vector;
+    assert!(
+        (centre.x + 0.05).abs() < 0.03 && (centre.y - 0.05).abs() < 0.03,
+        "{centre:?}"
+    );
+    assert!(plan.grasps.iter().all(|g| g.object_id == plan.objects[0].id));
+    assert_eq!(plan.obstacles.len(), 1, "{:?}", plan.obstacles);
+    let cup = &plan.obstacles[0];
+    assert!(
+        (cup.max.z - 0.10).abs() < 0.005 && cup.min.y < -0.15 && cup.max.y > -0.15,
+        "{cup:?}"
+    );
+
+    // A body the checks refuse is a named error.
+    let bad = PlanOptions {
+        robot_body: vec![BodyCapsule {
+            radius_m: f64::NAN,
+            ..capsule(0.0, 0.0, 0.1, 0.05)
+        }],
+        ..PlanOptions::default()
+    };
+    let input = cell.camera.scene_input(&cell.bytes, Cell::workspace());
+    let err = cell
+        .planner
+        .plan(&input, &bad, &mut cell.net)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("robot_body[0].radius_m"), "{err}");
 }

@@ -308,6 +308,18 @@ impl PickConfig {
         left_out
     }
 
+    /// The robot's body at `q`, hand open, as the planner leaves its points
+    /// out ([`crate::collision::CollisionWorld::robot_body`]).
+    pub fn robot_body(&self, arm: &Ur5e, q: &Joints) -> Vec<mvgrasp_core::BodyCapsule> {
+        let open = self.approach_opening(f64::INFINITY);
+        crate::collision::CollisionWorld::new(self.world_from_base, &[], self.arm_model.clone())
+            .with_gripper(
+                self.flange_from_tcp * Translation3::new(0.0, 0.0, self.fingertip_along(open)),
+                open,
+            )
+            .robot_body(arm, q)
+    }
+
     /// Whether `grasp` tries the spot of `failed` again: centres within
     /// `failed_radius_m`, approach and closing directions within
     /// `failed_angle_deg` (a parallel jaw closes the same either way round).

@@ -415,7 +415,7 @@ pub(crate) mod tests {
         }
     }
 
-    pub(in crate::pick) const HOME: Joints = [0.0, -PI / 2.0, PI / 2.0, -PI / 2.0, -PI / 2.0, 0.0];
+    pub(in crate::pick) use crate::ur5e::HOME;
 
     #[test]
     fn the_fingertips_meet_the_object_at_the_grasp() {

@@ -17,6 +17,10 @@ use crate::error::{Error, Result};
 /// Six joint angles (rad), base to wrist 3.
 pub type Joints = [f64; 6];
 
+/// The arm upright, its forearm level and the tool pointing down: where the
+/// emulator starts and a dry run stands.
+pub const HOME: Joints = [0.0, -FRAC_PI_2, FRAC_PI_2, -FRAC_PI_2, -FRAC_PI_2, 0.0];
+
 /// Standard DH parameters of a 6-axis UR arm.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DhParams {

@@ -3,5 +3,5 @@
 mod kinematics;
 
 pub use kinematics::{
-    DhParams, JointLimits, Joints, Ur5e, WristReach, check_joints, check_pose, max_joint_move,
+    DhParams, HOME, JointLimits, Joints, Ur5e, WristReach, check_joints, check_pose, max_joint_move,
 };

@@ -101,9 +101,9 @@ fn the_service_plans_what_the_in_process_planner_plans() {
     let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
     // The documented defaults' ask, the arm's reach included.
     let ask = robot_bridge::config::BridgeConfig::default()
-        .ask(&Ur5e::default())
+        .ask(&Ur5e::default(), &HOME)
         .expect("ask");
-    assert!(ask.arm_reach.is_some());
+    assert!(ask.arm_reach.is_some() && !ask.robot_body.is_empty());
     let local = plan_locally(&scene, &ask).expect("local");
     let remote = plan_remotely(
         &format!("http://{}", server.addr),
@@ -300,7 +300,7 @@ fn the_cli_tries_a_grasp_that_came_up_empty_last() {
     // The same grasps as the CLI's: the in-process planner, the default request.
     let scene = load_scene(&sample("depth.png"), &sample("camera.json")).expect("sample scene");
     let ask = robot_bridge::config::BridgeConfig::default()
-        .ask(&Ur5e::default())
+        .ask(&Ur5e::default(), &HOME)
         .expect("ask");
     let planned = plan_locally(&scene, &ask).expect("planned");
     let file = dir.join("failed.jsonl");

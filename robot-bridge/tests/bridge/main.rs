@@ -15,7 +15,7 @@ use robot_bridge::rtde::RtdeClient;
 use robot_bridge::script::send_script;
 use robot_bridge::ur5e::{Joints, Ur5e};
 
-const HOME: Joints = [0.0, -PI / 2.0, PI / 2.0, -PI / 2.0, -PI / 2.0, 0.0];
+use robot_bridge::ur5e::HOME;
 const TIMEOUT: Duration = Duration::from_secs(2);
 
 fn emulator() -> Emulator {

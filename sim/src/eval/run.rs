@@ -17,6 +17,7 @@ pub fn plan_options(setting: &Setting, seed: u64, gripper: &GripperModel) -> Pla
         approach_cone: None,
         arm_reach: None,
         obstacle_region: None,
+        robot_body: Vec::new(),
     }
 }
 
