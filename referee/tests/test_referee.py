@@ -696,7 +696,7 @@ class ReleaseTest(unittest.TestCase):
 class PlannerErrorTest(unittest.TestCase):
     def test_a_refused_frame_ends_the_episode_with_the_planners_reason(self):
         class Refusing:
-            def plan(self, depth, pose, seed=0):
+            def plan(self, depth, pose, seed=0, robot_body=None):
                 return {"grasps": [], "objects": [], "table": None, "server_ms": 0.0, "call_ms": 1.0, "views": {},
                         "error": "INVALID_ARGUMENT: nothing in the workspace"}
 
