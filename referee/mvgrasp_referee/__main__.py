@@ -58,10 +58,14 @@ def parse(argv):
                    help="the robot-bridge tries a grasp within this of a pick that came up empty-handed last "
                         "(its pick.failed_radius_m; default: the bridge's own; 0: in the planner's rank, "
                         "as before 2026-11-30)")
-    p.add_argument("--release-height-m", type=float, default=0.0, metavar="M",
+    p.add_argument("--release-height-m", type=float, default=0.15, metavar="M",
                    help="the robot-bridge lowers what it holds into the bin before letting go, stopping on "
                         "contact, at the lowest this high over the bin's floor (its pick.release_height_m; "
-                        "default 0, the bridge's: let go at the drop pose)")
+                        "default 0.15, the bridge's; 0: let go at the drop pose, as before 2026-12-01)")
+    p.add_argument("--release-spread-m", type=float, default=0.05, metavar="M",
+                   help="the robot-bridge lets go over four spots this far off the bin's centre along x and y, "
+                        "in turn, counting the objects it held to the release (its pick.release_spread_m; "
+                        "default 0.05, the bridge's; 0: over the centre, as before 2026-12-01)")
     p.add_argument("--close-speed-m-s", type=float, default=None, metavar="V",
                    help="how fast the pads close and open (m/s of the gap; default 0.14, the robot-bridge's "
                         "speed register on the 2F-140; 0: the servo slams them, as before 2026-11-29)")
@@ -115,7 +119,8 @@ def _init(args):
     probe = cell.build([], [])
     travel = [] if args.rigid_tcp else gripper.fingertip_travel(probe)
     _worker["bridge"] = bridge.Bridge(args.bridge, gripper.tcp_in_flange(probe), travel, args.bin_fill_m,
-                                        args.approach_clearance_m, args.failed_radius_m, args.release_height_m)
+                                        args.approach_clearance_m, args.failed_radius_m, args.release_height_m,
+                                        args.release_spread_m)
     _worker["planner"] = planner.OraclePlanner() if args.oracle else planner.Planner(
         args.server, args.policy, args.min_quality, args.max_grasps,
         view_cascade=False if args.no_view_cascade else None, approach_cone=args.approach_cone,
@@ -184,6 +189,9 @@ def main(argv=None):
     if not (args.release_height_m == 0.0 or cell.BIN_WALL_M[1] <= args.release_height_m < cell.DROP_HEIGHT_M):
         raise SystemExit(f"referee: --release-height-m {args.release_height_m}: 0 (off), or from the bin's walls "
                          f"({cell.BIN_WALL_M[1]} m) to under the drop height ({cell.DROP_HEIGHT_M} m)")
+    if not 0.0 <= args.release_spread_m < cell.BIN_INNER_HALF_M:
+        raise SystemExit(f"referee: --release-spread-m {args.release_spread_m}: 0 (off), or under the bin's "
+                         f"inner half width ({cell.BIN_INNER_HALF_M} m)")
     os.makedirs(args.out, exist_ok=True)
     work = jobs(args)
     assets.robosuite_assets()
@@ -212,7 +220,8 @@ def main(argv=None):
             "oracle": args.oracle, "bin_fill_m": args.bin_fill_m,
             "approach_clearance_m": args.approach_clearance_m, "failed_radius_m": args.failed_radius_m,
             "failed_tried_last": args.failed_radius_m != 0.0, "release_height_m": args.release_height_m,
-            "lowered_before_release": args.release_height_m != 0.0, "close_speed_m_s": args.close_speed_m_s,
+            "lowered_before_release": args.release_height_m != 0.0, "release_spread_m": args.release_spread_m,
+            "close_speed_m_s": args.close_speed_m_s,
             "pads_open_at_speed": True, "workers": args.workers,
             "wall_s": time.perf_counter() - start,
             "command": "scripts/referee.sh " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))}

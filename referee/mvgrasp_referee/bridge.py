@@ -37,15 +37,16 @@ def matrix_xyzw(quaternion):
 
 
 def config_toml(tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_M, approach_clearance_m=None,
-                failed_radius_m=None, release_height_m=None):
+                failed_radius_m=None, release_height_m=None, release_spread_m=None):
     """The bridge's settings for this cell (robot-bridge/bridge.toml's keys);
     `fingertip_travel` as `gripper.fingertip_travel` gives it (empty: a rigid
     TCP); the basket reaches `bin_fill_m` high; the fingers open
     `approach_clearance_m` wider than a grasp; a grasp within
     `failed_radius_m` of a pick that came up empty is tried last; the hand
     goes down towards `release_height_m` over the bin's floor before letting
-    go, stopping on contact (0: lets go at the drop pose) (None: the
-    bridge's defaults)."""
+    go, stopping on contact (0: lets go at the drop pose); it lets go over
+    four spots `release_spread_m` off the drop pose in turn (0: over the
+    drop pose) (None: the bridge's defaults)."""
     position, yaw = cellmod.WORLD_FROM_BASE
     base_q = [0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)]
     # Fingers close along the flange's y: the TCP's x (closing) is the flange's y.
@@ -57,6 +58,8 @@ def config_toml(tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_
         pick_keys += f"failed_radius_m = {failed_radius_m:.4f}\n"
     if release_height_m is not None:
         pick_keys += f"release_height_m = {release_height_m:.4f}\n"
+    if release_spread_m is not None:
+        pick_keys += f"release_spread_m = {release_spread_m:.4f}\n"
     return f"""[robot]
 world_from_base = {{ position = [{fmt(f"{v:.6f}" for v in position)}], orientation = [{fmt(f"{v:.9f}" for v in base_q)}] }}
 flange_from_tcp = {{ position = [{fmt(f"{v:.6f}" for v in tcp_in_flange)}], orientation = [{fmt(f"{v:.9f}" for v in tcp_q)}] }}
@@ -72,12 +75,12 @@ class Bridge:
     """A running `robot-bridge plan-jsonl` process."""
 
     def __init__(self, binary, tcp_in_flange, fingertip_travel=(), bin_fill_m=cellmod.BIN_FILL_M,
-                 approach_clearance_m=None, failed_radius_m=None, release_height_m=None):
+                 approach_clearance_m=None, failed_radius_m=None, release_height_m=None, release_spread_m=None):
         if not os.path.exists(binary):
             raise FileNotFoundError(f"{binary}: build it with `cargo build --release -p mvgrasp-robot-bridge`")
         self._config = tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False)
         self._config.write(config_toml(tcp_in_flange, fingertip_travel, bin_fill_m, approach_clearance_m,
-                                       failed_radius_m, release_height_m))
+                                       failed_radius_m, release_height_m, release_spread_m))
         self._config.close()
         self.process = subprocess.Popen([binary, "plan-jsonl", "--config", self._config.name],
                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
@@ -115,11 +118,13 @@ class Bridge:
             raise RuntimeError(answer["error"])
         return answer["robot_body"]
 
-    def plan(self, grasps, scene, current):
+    def plan(self, grasps, scene, current, released=0):
         """The bridge's pick for ranked `grasps` (dicts with position,
         orientation xyzw, width_m, quality, object) among the obstacles of
-        `scene` (planner.bridge_scene), or its refusals."""
-        answer = self.ask({"plan": {"grasps": grasps, "scene": scene, "current": [float(v) for v in current]}})
+        `scene` (planner.bridge_scene), or its refusals; `released` objects
+        were let go over the bin before (where over it this one goes)."""
+        answer = self.ask({"plan": {"grasps": grasps, "scene": scene, "current": [float(v) for v in current],
+                                    "released": int(released)}})
         if not answer["ok"]:
             raise RuntimeError(answer["error"])
         return answer

@@ -130,6 +130,9 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
     # Grasps that left the hand empty (the gripper tells): the bridge tries
     # grasps that repeat one of them last (`order`), as `pick --failed-picks` does.
     empty_handed = []
+    # Picks that held their object to the release, wherever it landed: as
+    # `pick --basket-count` counts them, where over the bin the next goes.
+    released = 0
     try:
         for attempt in range(2 * len(specs) + 4):
             remaining = [i for i in initial if i not in removed and scenes.on_table(cell, i)]
@@ -170,7 +173,7 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
             def ask(start):
                 asked = [{"position": g["position"], "orientation": g["orientation"], "width_m": g["width_m"],
                           "quality": g["quality"], "object": index_of.get(g["object"])} for g in grasps[start:]]
-                return bridge.plan(asked, obstacles, cell.arm_q())
+                return bridge.plan(asked, obstacles, cell.arm_q(), released)
 
             outcome, details = None, {}
             start = 0
@@ -226,6 +229,8 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                 executor.park(cell)
             if details.get("empty_handed"):
                 empty_handed.append(grasp)
+            if "released_from_m" in details:
+                released += 1
             if outcome == "success":
                 removed.add(details["picked"])
                 failures = 0

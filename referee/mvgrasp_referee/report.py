@@ -95,6 +95,8 @@ def _cell_settings(meta):
     if meta.get("lowered_before_release"):
         parts.append(f"held objects lowered into the bin (to {meta['release_height_m']} m over its floor, "
                      "stopping on contact) before the release")
+    if meta.get("release_spread_m"):
+        parts.append(f"let go over four spots {meta['release_spread_m']} m off the bin's centre in turn")
     return "; " + ", ".join(parts) if parts else ""
 
 

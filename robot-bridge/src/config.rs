@@ -97,8 +97,15 @@ pub struct PickSection {
     /// Before letting go the TCP goes straight down from `world_from_drop`,
     /// stopping where what the hand holds meets something, at the lowest
     /// this high over the basket's floor (the bottom of `basket`; m; 0:
-    /// let go at `world_from_drop`; `PickConfig::release_lowest_z_m`).
+    /// let go at `world_from_drop`; `PickConfig::release_lowest_z_m`;
+    /// default 0.15).
     pub release_height_m: f64,
+    /// Let go over four spots of the basket in turn rather than over
+    /// `world_from_drop` alone: that pose moved this far along the world's
+    /// x and y both ways, opposite corners one after the other, so what
+    /// the cell puts in the basket spreads over it (m; 0: off; the spots
+    /// within the basket; `PickConfig::release_offsets_m`; default 0.05).
+    pub release_spread_m: f64,
     /// Grasps asked of the planner (the best feasible one is picked).
     pub max_grasps: usize,
     /// Check the fingers against the other detected objects on the approach
@@ -227,7 +234,8 @@ impl Default for BridgeConfig {
                     centre: [0.45, 0.45, 0.05],
                     half_extents_m: [0.15, 0.15, 0.05],
                 },
-                release_height_m: 0.0,
+                release_height_m: 0.15,
+                release_spread_m: 0.05,
                 max_grasps: 10,
                 check_fingers_near_grasp: pick.check_fingers_near_grasp,
                 check_palm_near_grasp: pick.check_palm_near_grasp,
@@ -359,6 +367,20 @@ impl BridgeConfig {
                 ),
             ));
         }
+        self.pick.world_from_drop.isometry("pick.world_from_drop")?;
+        let s = self.pick.release_spread_m;
+        let drop = self.pick.world_from_drop.position;
+        let inside = (0..2).all(|i| (drop[i] - b.centre[i]).abs() + s < b.half_extents_m[i]);
+        if !(s.is_finite() && s >= 0.0 && (s == 0.0 || inside)) {
+            return Err(bad(
+                "pick.release_spread_m",
+                format!(
+                    "{s}: 0 (off) or a distance that keeps the spots around the drop pose within the basket ({:?} +- {:?})",
+                    &b.centre[..2],
+                    &b.half_extents_m[..2]
+                ),
+            ));
+        }
         if !(1..=100).contains(&self.pick.max_grasps) {
             return Err(bad(
                 "pick.max_grasps",
@@ -383,6 +405,10 @@ impl BridgeConfig {
             world_from_drop: self.pick.world_from_drop.isometry("pick.world_from_drop")?,
             release_lowest_z_m: (self.pick.release_height_m > 0.0)
                 .then(|| self.basket_floor_z() + self.pick.release_height_m),
+            release_offsets_m: match self.pick.release_spread_m {
+                0.0 => Vec::new(),
+                s => vec![[s, s], [-s, -s], [s, -s], [-s, s]],
+            },
             joint_speed: self.robot.joint_speed,
             joint_accel: self.robot.joint_accel,
             tool_speed: self.robot.tool_speed,
@@ -508,6 +534,9 @@ mod tests {
             ("[pick]\nfailed_radius_m = -0.01\n", "pick.failed_radius_m"),
             ("[pick]\nrelease_height_m = 0.3\n", "pick.release_height_m"),
             ("[pick]\nrelease_height_m = -0.1\n", "pick.release_height_m"),
+            ("[pick]\nrelease_spread_m = 0.15\n", "pick.release_spread_m"),
+            ("[pick]\nrelease_spread_m = -0.05\n", "pick.release_spread_m"),
+            ("[pick]\nrelease_spread_m = nan\n", "pick.release_spread_m"),
             ("[pick]\nfailed_angle_deg = 120.0\n", "pick.failed_angle_deg"),
             (
                 "[pick]\napproach_clearance_m = -0.01\n",

@@ -17,7 +17,7 @@
 //!   "radius_m"}]}`, the arm at those joints as the planner's
 //!   `PlanGraspsRequest.robot_body` takes it (`PickConfig::robot_body`), so
 //!   a simulator asks the planner as `pick` does;
-//! - `{"plan": {"grasps": [...], "scene": {...}, "current": [q1..q6]}}`
+//! - `{"plan": {"grasps": [...], "scene": {...}, "current": [q1..q6], "released": n}}`
 //!   -> `{"ok": true, "grasp_index": k, "steps": [...], "refused": [...]}`. Each
 //!   grasp is `{"position", "orientation", "width_m", "quality", "object"}` in
 //!   the world (mvgrasp grasp frame); the optional `scene` is the planner's
@@ -29,7 +29,9 @@
 //!   (`obstacles_left_out` in the answer: the boxes taken for the cell). A `movel` step carries its joint
 //!   samples every centimetre (`path`), so the straight line is the one the
 //!   bridge checked. `refused` says, for each better-ranked grasp that was
-//!   skipped, why;
+//!   skipped, why. The optional `released` (default 0) counts the objects
+//!   let go over the basket since it was emptied, which chooses where over
+//!   it this one goes (`PickConfig::release_spot`);
 //! - `{"order": {"grasps": [{"position", "orientation"}], "failed": [...]}}`
 //!   -> `{"ok": true, "order": [k...]}`, the order to try ranked grasps in
 //!   once the picks at the `failed` poses came up empty
@@ -84,6 +86,9 @@ struct PlanRequest {
     grasps: Vec<GraspJson>,
     scene: Option<SceneJson>,
     current: Joints,
+    /// Objects let go over the basket since it was emptied (`PickConfig::released`).
+    #[serde(default)]
+    released: usize,
 }
 
 /// The planner's answer as obstacles come from it: the detected objects,
@@ -250,6 +255,7 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                 })
                 .collect::<Result<Vec<_>>>()?;
             let mut config = config.clone();
+            config.released = plan.released;
             let mut left_out = Vec::new();
             let scene = match &plan.scene {
                 Some(scene) => {
@@ -430,6 +436,51 @@ mod tests {
             assert!(
                 (last[i].as_f64().unwrap() - end[i].as_f64().unwrap()).abs() < 1e-9,
                 "{last} vs {end}"
+            );
+        }
+    }
+
+    /// `released` chooses the spot over the basket, in turn; absent, the first.
+    #[test]
+    fn released_chooses_where_over_the_basket() {
+        let arm = Ur5e::default();
+        let config = PickConfig {
+            release_offsets_m: vec![[0.05, 0.05], [-0.05, -0.05]],
+            ..PickConfig::default()
+        };
+        let over_the_basket = |released: Option<usize>| {
+            let mut plan = serde_json::json!({
+                "grasps": [{"position": [0.0, -0.45, 0.05], "orientation": [1, 0, 0, 0], "width_m": 0.05}],
+                "current": crate::ur5e::HOME,
+            });
+            if let Some(n) = released {
+                plan["released"] = n.into();
+            }
+            let mut out = Vec::new();
+            let line = serde_json::json!({ "plan": plan }).to_string();
+            serve(&arm, &config, line.as_bytes(), &mut out).unwrap();
+            let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+            assert_eq!(v["ok"], true, "{v}");
+            let step = v["steps"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|s| s["name"] == "over the basket")
+                .unwrap();
+            let q: Joints = serde_json::from_value(step["joints"].clone()).unwrap();
+            let tcp = config.world_from_base * arm.forward(&q) * config.flange_from_tcp;
+            tcp.translation.vector - config.world_from_drop.translation.vector
+        };
+        for (released, [x, y]) in [
+            (None, [0.05, 0.05]),
+            (Some(0), [0.05, 0.05]),
+            (Some(1), [-0.05, -0.05]),
+            (Some(2), [0.05, 0.05]),
+        ] {
+            let off = over_the_basket(released);
+            assert!(
+                (off - Vector3::new(x, y, 0.0)).norm() < 1e-6,
+                "{released:?}: {off:?}"
             );
         }
     }

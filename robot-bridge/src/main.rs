@@ -85,6 +85,13 @@ enum Command {
         /// the scene changes.
         #[arg(long, env = "ROBOT_BRIDGE_FAILED_PICKS")]
         failed_picks: Option<std::path::PathBuf>,
+        /// The objects let go over the basket since it was emptied, a file
+        /// holding one number (missing: 0): chooses where over the basket
+        /// this one goes (`[pick] release_spread_m`), and counts up when
+        /// the pick holds its object to the release. Delete it when the
+        /// basket is emptied.
+        #[arg(long, env = "ROBOT_BRIDGE_BASKET_COUNT")]
+        basket_count: Option<std::path::PathBuf>,
     },
     /// Run the controller emulator (RTDE + script receiver) until interrupted.
     Emulate {
@@ -180,6 +187,7 @@ fn main() -> anyhow::Result<()> {
             planner,
             dry_run,
             failed_picks,
+            basket_count,
         } => {
             let mut settings = match &config {
                 Some(path) => BridgeConfig::load(path)?,
@@ -206,7 +214,11 @@ fn main() -> anyhow::Result<()> {
                 settings.planner.endpoint = planner;
             }
             settings.validate()?;
-            pick(&arm, &depth, &camera, &settings, dry_run, failed_picks.as_deref())?;
+            let files = PickFiles {
+                failed_picks: failed_picks.as_deref(),
+                basket_count: basket_count.as_deref(),
+            };
+            pick(&arm, &depth, &camera, &settings, dry_run, &files)?;
         }
         Command::Emulate {
             host,
@@ -259,14 +271,37 @@ fn main() -> anyhow::Result<()> {
     Ok(())
 }
 
+/// What `pick` keeps between picks of one scene (`--failed-picks`) and of
+/// one basket (`--basket-count`).
+struct PickFiles<'a> {
+    failed_picks: Option<&'a std::path::Path>,
+    basket_count: Option<&'a std::path::Path>,
+}
+
+/// The number in a `--basket-count` file (missing: 0).
+fn read_basket_count(path: &std::path::Path) -> anyhow::Result<usize> {
+    match std::fs::read_to_string(path) {
+        Ok(text) => text.trim().parse().with_context(|| {
+            format!(
+                "{}: one whole number expected (objects let go over the basket), not {:?}",
+                path.display(),
+                text.trim()
+            )
+        }),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(0),
+        Err(e) => Err(anyhow::anyhow!(e).context(format!("reading {}", path.display()))),
+    }
+}
+
 fn pick(
     arm: &Ur5e,
     depth: &std::path::Path,
     camera: &std::path::Path,
     settings: &BridgeConfig,
     dry_run: bool,
-    failed_picks: Option<&std::path::Path>,
+    files: &PickFiles,
 ) -> anyhow::Result<()> {
+    let failed_picks = files.failed_picks;
     use std::time::Duration;
 
     use robot_bridge::execute::{Controller, execute_pick};
@@ -312,6 +347,9 @@ fn pick(
         planned.grasps.len()
     );
     let mut config = settings.pick_config()?;
+    if let Some(path) = files.basket_count {
+        config.released = read_basket_count(path)?;
+    }
     config.obstacles.push(planned.table.clone());
     let left_out = config.add_seen_obstacles(arm, &planned.outside, &current);
     println!(
@@ -380,6 +418,12 @@ fn pick(
     match execute_pick(&mut controller, &plan, &config) {
         Ok(outcome) => {
             println!("outcome: {outcome:?}");
+            if let (robot_bridge::execute::PickOutcome::Placed { .. }, Some(path)) =
+                (&outcome, files.basket_count)
+            {
+                std::fs::write(path, format!("{}\n", config.released + 1))
+                    .with_context(|| format!("writing {}", path.display()))?;
+            }
             if let (true, Some(path)) = (outcome.empty_handed(), failed_picks) {
                 use std::io::Write;
                 let line = robot_bridge::pick::failed_pick_line(&grasp.world_from_grasp);

@@ -138,6 +138,15 @@ pub struct PickConfig {
     /// object is set down rather than dropped and toppled over the wall.
     /// None: let go at `world_from_drop`.
     pub release_lowest_z_m: Option<f64>,
+    /// Where over the basket to let go, in turn: world x/y offsets (m)
+    /// from `world_from_drop`, the object after `released` others going to
+    /// offset `released % len` ([`Self::release_spot`]), so that what the
+    /// cell puts in the basket spreads over it rather than piling up under
+    /// one spot. Empty: always at `world_from_drop`.
+    pub release_offsets_m: Vec<[f64; 2]>,
+    /// Objects let go over the basket since it was last emptied (the
+    /// caller counts them; chooses from `release_offsets_m`).
+    pub released: usize,
     /// Joint speed (rad/s) and acceleration (rad/s^2) for joint moves.
     pub joint_speed: f64,
     /// See `joint_speed`.
@@ -200,6 +209,8 @@ impl Default for PickConfig {
                 UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI),
             ),
             release_lowest_z_m: None,
+            release_offsets_m: Vec::new(),
+            released: 0,
             // Conservative: well under the UR5e's limits.
             joint_speed: 0.6,
             joint_accel: 0.8,
@@ -318,6 +329,18 @@ impl PickConfig {
                 open,
             )
             .robot_body(arm, q)
+    }
+
+    /// The TCP pose to let go at over the basket: `world_from_drop` moved
+    /// by the `released`-th of `release_offsets_m` (in turn).
+    pub fn release_spot(&self) -> Isometry3<f64> {
+        match self.release_offsets_m.len() {
+            0 => self.world_from_drop,
+            n => {
+                let [x, y] = self.release_offsets_m[self.released % n];
+                Translation3::new(x, y, 0.0) * self.world_from_drop
+            }
+        }
     }
 
     /// Whether `grasp` tries the spot of `failed` again: centres within

@@ -230,18 +230,26 @@ fn plan_one(
         }
         // Over the basket the tool's turn about the vertical does not matter:
         // per quarter turn the nearest arm branch (shoulder, elbow, wrist)
-        // that is free of collisions, then the nearest quarter turn.
-        let Some((q_drop, drop)) = [0.0, PI / 2.0, PI, -PI / 2.0]
+        // that is free of collisions, then the nearest quarter turn. At this
+        // object's spot; where the arm cannot be there, over the basket's
+        // drop pose.
+        let Some((q_drop, drop)) = [config.release_spot(), config.world_from_drop]
             .iter()
-            .filter_map(|yaw| {
-                let drop = config.world_from_drop * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), *yaw);
-                arm.inverse_ranked(&flange_for(&drop), &q_lift)
-                    .ok()?
-                    .into_iter()
-                    .find(|q| world.collision(arm, q).is_none())
-                    .map(|q| (q, drop))
+            .find_map(|spot| {
+                [0.0, PI / 2.0, PI, -PI / 2.0]
+                    .iter()
+                    .filter_map(|yaw| {
+                        let drop = spot * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), *yaw);
+                        arm.inverse_ranked(&flange_for(&drop), &q_lift)
+                            .ok()?
+                            .into_iter()
+                            .find(|q| world.collision(arm, q).is_none())
+                            .map(|q| (q, drop))
+                    })
+                    .min_by(|(a, _), (b, _)| {
+                        max_joint_move(&q_lift, a).total_cmp(&max_joint_move(&q_lift, b))
+                    })
             })
-            .min_by(|(a, _), (b, _)| max_joint_move(&q_lift, a).total_cmp(&max_joint_move(&q_lift, b)))
         else {
             reason = "no collision-free pose over the basket".to_owned();
             continue;
@@ -1119,5 +1127,50 @@ pub(crate) mod tests {
             (q_other[2] - q_drop[2]).abs() > 0.5,
             "another elbow: {q_other:?} vs {q_drop:?}"
         );
+    }
+
+    /// With `release_offsets_m` the object after `released` others is let
+    /// go over its spot, in turn; where the arm cannot be over that spot,
+    /// over the drop pose.
+    #[test]
+    fn releases_take_the_spots_over_the_basket_in_turn() {
+        let arm = Ur5e::default();
+        let grasp = top_grasp(0.1, -0.45, 0.05);
+        let offsets = vec![[0.06, 0.06], [-0.06, -0.06], [0.06, -0.06]];
+        let released_at = |config: &PickConfig| {
+            let plan = plan_pick(&arm, config, &[grasp], &[], &HOME).unwrap();
+            let q = move_to(&plan, "over the basket");
+            let p = (config.world_from_base * arm.forward(&q) * config.flange_from_tcp)
+                .translation
+                .vector
+                - PickConfig::default().world_from_drop.translation.vector;
+            [p.x, p.y, p.z]
+        };
+        for released in 0..5 {
+            let config = PickConfig {
+                release_offsets_m: offsets.clone(),
+                released,
+                ..PickConfig::default()
+            };
+            let [x, y] = offsets[released % 3];
+            let at = released_at(&config);
+            assert!(
+                (at[0] - x).abs() < 1e-6 && (at[1] - y).abs() < 1e-6 && at[2].abs() < 1e-6,
+                "object {released}: {at:?}"
+            );
+            assert_eq!(config.release_spot().rotation, config.world_from_drop.rotation);
+        }
+        // None: the drop pose, whatever the count.
+        let at = released_at(&PickConfig {
+            released: 7,
+            ..PickConfig::default()
+        });
+        assert!(at.iter().all(|v| v.abs() < 1e-6), "{at:?}");
+        // A spot out of the arm's reach (3 m away): the drop pose.
+        let at = released_at(&PickConfig {
+            release_offsets_m: vec![[3.0, 0.0]],
+            ..PickConfig::default()
+        });
+        assert!(at.iter().all(|v| v.abs() < 1e-6), "{at:?}");
     }
 }

@@ -11,6 +11,18 @@ fn sample(file: &str) -> std::path::PathBuf {
         .join(file)
 }
 
+/// `robot-bridge pick --dry-run` on the committed sample frame, with `args` after.
+fn dry_run<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_robot-bridge"))
+        .args(["pick", "--dry-run", "--depth"])
+        .arg(sample("depth.png"))
+        .arg("--camera")
+        .arg(sample("camera.json"))
+        .args(args)
+        .output()
+        .expect("runs the CLI")
+}
+
 /// With the cell's approach cone the planner offers only approaches
 /// within it (here: from above within 20 degrees).
 #[test]
@@ -210,15 +222,7 @@ fn the_cli_reads_its_config_and_names_a_bad_key() {
     std::fs::create_dir_all(&dir).expect("dir");
     let good = dir.join("bridge.toml");
     std::fs::write(&good, "[pick]\npregrasp_m = 0.12\n[robot]\ntool_speed = 0.05\n").expect("write");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_robot-bridge"))
-        .args(["pick", "--dry-run", "--depth"])
-        .arg(sample("depth.png"))
-        .arg("--camera")
-        .arg(sample("camera.json"))
-        .arg("--config")
-        .arg(&good)
-        .output()
-        .expect("runs");
+    let out = dry_run(&[std::ffi::OsStr::new("--config"), good.as_os_str()]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(
@@ -227,28 +231,14 @@ fn the_cli_reads_its_config_and_names_a_bad_key() {
     );
     let bad = dir.join("bad.toml");
     std::fs::write(&bad, "[robot]\njoint_speed = 7.0\n").expect("write");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_robot-bridge"))
-        .args(["pick", "--dry-run", "--depth"])
-        .arg(sample("depth.png"))
-        .arg("--camera")
-        .arg(sample("camera.json"))
-        .arg("--config")
-        .arg(&bad)
-        .output()
-        .expect("runs");
+    let out = dry_run(&[std::ffi::OsStr::new("--config"), bad.as_os_str()]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("robot.joint_speed"));
 }
 
 #[test]
 fn the_cli_dry_run_prints_a_script() {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_robot-bridge"))
-        .args(["pick", "--dry-run", "--depth"])
-        .arg(sample("depth.png"))
-        .arg("--camera")
-        .arg(sample("camera.json"))
-        .output()
-        .expect("run the CLI");
+    let out = dry_run::<&str>(&[]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -268,16 +258,9 @@ fn the_cli_dry_run_prints_a_script() {
 fn the_cli_tries_a_grasp_that_came_up_empty_last() {
     let dir = std::env::temp_dir().join(format!("rb-failed-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("dir");
-    let run = |failed: Option<&std::path::Path>| {
-        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_robot-bridge"));
-        cmd.args(["pick", "--dry-run", "--depth"])
-            .arg(sample("depth.png"))
-            .arg("--camera")
-            .arg(sample("camera.json"));
-        if let Some(path) = failed {
-            cmd.arg("--failed-picks").arg(path);
-        }
-        cmd.output().expect("runs")
+    let run = |failed: Option<&std::path::Path>| match failed {
+        Some(path) => dry_run(&[std::ffi::OsStr::new("--failed-picks"), path.as_os_str()]),
+        None => dry_run::<&str>(&[]),
     };
     let picked = |out: &std::process::Output| -> usize {
         let stdout = String::from_utf8_lossy(&out.stdout);
@@ -319,4 +302,61 @@ fn the_cli_tries_a_grasp_that_came_up_empty_last() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+/// `pick --basket-count FILE` with `release_spread_m`: the count chooses the
+/// spot over the basket, four in turn (a missing file is 0); a dry run
+/// leaves the file alone; a file that holds no number is named.
+#[test]
+fn the_cli_lets_go_over_the_spot_the_basket_count_chooses() {
+    let dir = std::env::temp_dir().join(format!("rb-basket-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let config = dir.join("bridge.toml");
+    std::fs::write(&config, "[pick]\nrelease_spread_m = 0.06\n").expect("write");
+    let count = dir.join("count");
+    let script = |n: Option<&str>| {
+        match n {
+            Some(text) => std::fs::write(&count, text).expect("write"),
+            None => {
+                let _ = std::fs::remove_file(&count);
+            }
+        }
+        let out = dry_run(&[
+            std::ffi::OsStr::new("--config"),
+            config.as_os_str(),
+            std::ffi::OsStr::new("--basket-count"),
+            count.as_os_str(),
+        ]);
+        if let Some(text) = n {
+            assert_eq!(std::fs::read_to_string(&count).expect("read"), text);
+        }
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let over_the_basket = |n: Option<&str>| {
+        let (ok, stdout, stderr) = script(n);
+        assert!(ok, "{stdout}\n{stderr}");
+        stdout
+            .lines()
+            .find(|l| l.trim_start().starts_with("movej  over the basket"))
+            .expect("over the basket")
+            .to_owned()
+    };
+    let spots: Vec<String> = ["0", "1", "2", "3"]
+        .iter()
+        .map(|n| over_the_basket(Some(n)))
+        .collect();
+    for (i, a) in spots.iter().enumerate() {
+        for b in &spots[i + 1..] {
+            assert_ne!(a, b, "four spots");
+        }
+    }
+    assert_eq!(over_the_basket(None), spots[0]);
+    assert_eq!(over_the_basket(Some("5\n")), spots[1]);
+    let (ok, _, stderr) = script(Some("two"));
+    assert!(!ok);
+    assert!(stderr.contains("one whole number"), "{stderr}");
 }
