@@ -367,7 +367,14 @@ impl BridgeConfig {
                 ),
             ));
         }
-        self.pick.world_from_drop.isometry("pick.world_from_drop")?;
+        if !(1..=100).contains(&self.pick.max_grasps) {
+            return Err(bad(
+                "pick.max_grasps",
+                format!("{} is not in 1..=100", self.pick.max_grasps),
+            ));
+        }
+        // After the poses are read, so a bad drop pose is named as such.
+        self.pick_config()?;
         let s = self.pick.release_spread_m;
         let drop = self.pick.world_from_drop.position;
         let inside = (0..2).all(|i| (drop[i] - b.centre[i]).abs() + s < b.half_extents_m[i]);
@@ -381,13 +388,7 @@ impl BridgeConfig {
                 ),
             ));
         }
-        if !(1..=100).contains(&self.pick.max_grasps) {
-            return Err(bad(
-                "pick.max_grasps",
-                format!("{} is not in 1..=100", self.pick.max_grasps),
-            ));
-        }
-        self.pick_config().map(|_| ())
+        Ok(())
     }
 
     /// The pick settings (calibration and limits) this file describes.

@@ -278,19 +278,27 @@ struct PickFiles<'a> {
     basket_count: Option<&'a std::path::Path>,
 }
 
-/// The number in a `--basket-count` file (missing: 0).
-fn read_basket_count(path: &std::path::Path) -> anyhow::Result<usize> {
+/// The text of a file `pick` keeps between picks; None where it does not exist yet.
+fn read_if_present(path: &std::path::Path) -> anyhow::Result<Option<String>> {
     match std::fs::read_to_string(path) {
-        Ok(text) => text.trim().parse().with_context(|| {
-            format!(
-                "{}: one whole number expected (objects let go over the basket), not {:?}",
-                path.display(),
-                text.trim()
-            )
-        }),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(0),
+        Ok(text) => Ok(Some(text)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
         Err(e) => Err(anyhow::anyhow!(e).context(format!("reading {}", path.display()))),
     }
+}
+
+/// The number in a `--basket-count` file (missing: 0).
+fn read_basket_count(path: &std::path::Path) -> anyhow::Result<usize> {
+    let Some(text) = read_if_present(path)? else {
+        return Ok(0);
+    };
+    text.trim().parse().with_context(|| {
+        format!(
+            "{}: one whole number expected (objects let go over the basket), not {:?}",
+            path.display(),
+            text.trim()
+        )
+    })
 }
 
 fn pick(
@@ -301,7 +309,6 @@ fn pick(
     dry_run: bool,
     files: &PickFiles,
 ) -> anyhow::Result<()> {
-    let failed_picks = files.failed_picks;
     use std::time::Duration;
 
     use robot_bridge::execute::{Controller, execute_pick};
@@ -360,12 +367,8 @@ fn pick(
     for (name, why) in &left_out {
         println!("  {name}: {why}");
     }
-    let failed = match failed_picks {
-        Some(path) => match std::fs::read_to_string(path) {
-            Ok(text) => robot_bridge::pick::parse_failed_picks(&text)?,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
-            Err(e) => return Err(anyhow::anyhow!(e).context(format!("reading {}", path.display()))),
-        },
+    let failed = match files.failed_picks.map(read_if_present).transpose()?.flatten() {
+        Some(text) => robot_bridge::pick::parse_failed_picks(&text)?,
         None => Vec::new(),
     };
     let poses: Vec<_> = planned.grasps.iter().map(|g| g.world_from_grasp).collect();
@@ -424,7 +427,7 @@ fn pick(
                 std::fs::write(path, format!("{}\n", config.released + 1))
                     .with_context(|| format!("writing {}", path.display()))?;
             }
-            if let (true, Some(path)) = (outcome.empty_handed(), failed_picks) {
+            if let (true, Some(path)) = (outcome.empty_handed(), files.failed_picks) {
                 use std::io::Write;
                 let line = robot_bridge::pick::failed_pick_line(&grasp.world_from_grasp);
                 std::fs::OpenOptions::new()

@@ -232,24 +232,27 @@ fn plan_one(
         // per quarter turn the nearest arm branch (shoulder, elbow, wrist)
         // that is free of collisions, then the nearest quarter turn. At this
         // object's spot; where the arm cannot be there, over the basket's
-        // drop pose.
-        let Some((q_drop, drop)) = [config.release_spot(), config.world_from_drop]
-            .iter()
-            .find_map(|spot| {
-                [0.0, PI / 2.0, PI, -PI / 2.0]
-                    .iter()
-                    .filter_map(|yaw| {
-                        let drop = spot * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), *yaw);
-                        arm.inverse_ranked(&flange_for(&drop), &q_lift)
-                            .ok()?
-                            .into_iter()
-                            .find(|q| world.collision(arm, q).is_none())
-                            .map(|q| (q, drop))
-                    })
-                    .min_by(|(a, _), (b, _)| {
-                        max_joint_move(&q_lift, a).total_cmp(&max_joint_move(&q_lift, b))
-                    })
-            })
+        // drop pose (not tried twice where the spot is that pose).
+        let fallback = (!config.release_offsets_m.is_empty()).then_some(config.world_from_drop);
+        let Some((q_drop, drop)) =
+            [Some(config.release_spot()), fallback]
+                .iter()
+                .flatten()
+                .find_map(|spot| {
+                    [0.0, PI / 2.0, PI, -PI / 2.0]
+                        .iter()
+                        .filter_map(|yaw| {
+                            let drop = spot * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), *yaw);
+                            arm.inverse_ranked(&flange_for(&drop), &q_lift)
+                                .ok()?
+                                .into_iter()
+                                .find(|q| world.collision(arm, q).is_none())
+                                .map(|q| (q, drop))
+                        })
+                        .min_by(|(a, _), (b, _)| {
+                            max_joint_move(&q_lift, a).total_cmp(&max_joint_move(&q_lift, b))
+                        })
+                })
         else {
             reason = "no collision-free pose over the basket".to_owned();
             continue;
