@@ -183,10 +183,12 @@ def obstacle_region(margin_m):
     return (x0 - margin_m, y0 - margin_m, z0), (x1 + margin_m, y1 + margin_m, z1 + margin_m)
 
 
-def bridge_scene(plan):
+def bridge_scene(plan, robot_body_left_out=False):
     """The planner's answer as the robot-bridge turns it into obstacles
     (`plan-jsonl`'s `scene`: detected objects, table plane, workspace, and
-    the boxes seen outside the workspace when there are any)."""
+    the boxes seen outside the workspace when there are any);
+    `robot_body_left_out`: the plan was asked with the arm's body, so a box
+    against the arm is something lying there (the bridge keeps it cut)."""
     (x0, y0, z0), (x1, y1, z1) = WORKSPACE
     scene = {"detected": [{k: o[k] for k in ("id", "position", "orientation", "extent_min_m", "extent_max_m")}
                           for o in plan["objects"]],
@@ -197,6 +199,8 @@ def bridge_scene(plan):
         index_of = {o["id"]: k for k, o in enumerate(plan["objects"])}
         scene["obstacles"] = [{"min": o["min"], "max": o["max"], "object": index_of.get(o.get("object_id"))}
                               for o in plan["obstacles"]]
+        if robot_body_left_out:
+            scene["robot_body_left_out"] = True
     return scene
 
 

@@ -145,6 +145,7 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
             depth = cam.depth(cell.model, cell.data, pose)
             if noise:
                 depth = cammod.add_noise(depth, rng)
+            body = None
             if getattr(planner, "ground_truth", False):
                 plan = planner.plan_truth(cell, remaining)
             else:
@@ -164,7 +165,7 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                 record["attempts"].append(entry)
                 record["end"] = "no-grasp"
                 break
-            obstacles = bridge_scene(plan)
+            obstacles = bridge_scene(plan, body is not None)
             grasps = plan["grasps"][:MAX_GRASPS_TRIED]
             rank = bridge.order(grasps, empty_handed)  # the planner's rank of each, in the order tried
             grasps = [grasps[k] for k in rank]
@@ -184,6 +185,7 @@ def run_episode(planner, bridge, scenario, pool, camera_kind, seed, episode, res
                     entry["obstacles_seen"] = len(obstacles["obstacles"])
                     entry["obstacles_left_out"] = sorted({o["why"] for o in answer.get("obstacles_left_out", [])})
                     entry["obstacles_kept"] = entry["obstacles_seen"] - len(answer.get("obstacles_left_out", []))
+                    entry["obstacles_cut"] = len(answer.get("obstacles_cut", []))
                 if answer["grasp_index"] is None:
                     entry["unreachable"] += len(grasps) - start
                     entry["refused"] += [r["reason"] for r in answer["refused"]][:3]

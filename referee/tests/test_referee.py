@@ -527,6 +527,34 @@ class ObstaclesTest(unittest.TestCase):
         self.assertGreater(kept_object, 0)
 
 
+    def test_an_object_against_the_parked_arm_is_kept_cut_when_the_body_was_left_out(self):
+        """The box of a loaf lying 12-26 cm in front of the robot's base
+        (a heavy-clutter heap's, 2026-12-02), against the parked arm: sent
+        as the planner's answer to a frame asked without the robot's body,
+        the bridge takes it for the arm itself and plans a grasp in the
+        square; asked with the body (`bridge_scene`'s flag), it keeps the
+        box cut back clear of the arm, and no move from the park clears the
+        rest of it."""
+        c = cell.build([], [])
+        b = bridge.Bridge(bridge_binary(), gripper.tcp_in_flange(c))
+        grasp = {"position": [0.155, -0.144, 0.07], "orientation": [1.0, 0.0, 0.0, 0.0], "width_m": 0.06,
+                 "quality": 0.9, "object": 0}
+        plan = {"objects": [{"id": 0, "position": [0.155, -0.144, 0.035], "orientation": [0.0, 0.0, 0.0, 1.0],
+                             "extent_min_m": [-0.03, -0.03, -0.035], "extent_max_m": [0.03, 0.03, 0.035]}],
+                "table": {"normal": [0.0, 0.0, 1.0], "offset_m": 0.0},
+                "obstacles": [{"min": [-0.004, -0.498, 0.0], "max": [0.147, -0.358, 0.12]}]}
+        try:
+            answers = {told: b.plan([grasp], planner.bridge_scene(plan, told), c.arm_q()) for told in (False, True)}
+        finally:
+            b.close()
+        self.assertNotIn("robot_body_left_out", planner.bridge_scene(plan))
+        self.assertEqual([o["why"] for o in answers[False]["obstacles_left_out"]],
+                         ["touches the arm where it stands"], answers[False])
+        self.assertEqual(answers[False]["grasp_index"], 0, answers[False])
+        self.assertEqual(answers[True]["obstacles_left_out"], [], answers[True])
+        self.assertEqual(answers[True]["obstacles_cut"], ["obstacle 0"], answers[True])
+        self.assertIsNone(answers[True]["grasp_index"], answers[True])
+
     def test_the_bridges_arm_covers_the_simulated_arms_links(self):
         """A 2 cm box at the centre of each of the simulated arm's link
         meshes (upper arm, forearm, wrists), the arm parked and reaching

@@ -169,6 +169,10 @@ pub const BASE_COLUMN_RADIUS_M: f64 = 0.1;
 /// 12 poses, shows points up to 5 mm outside them with 2 cm).
 pub const ROBOT_BODY_MARGIN_M: f64 = 0.03;
 
+/// [`foreign_obstacles`]' verdict on a box the arm and hand touch where
+/// they stand.
+pub const TOUCHES_ARM: &str = "touches the arm where it stands";
+
 /// Why each box the planner saw outside its workspace
 /// (`PlanGraspsResponse.obstacles`) is the cell itself, in `seen`'s order;
 /// `None`: it is not, and the arm keeps clear of it. A box is taken for part of the cell when
@@ -206,13 +210,69 @@ pub fn foreign_obstacles(
             .collision(arm, current)
             .is_some()
         {
-            Some("touches the arm where it stands")
+            Some(TOUCHES_ARM)
         } else {
             None
         };
         verdicts.push(why);
     }
     verdicts
+}
+
+/// `seen` cut back from one face, as little as frees the arm and hand at
+/// `current` (the arm model as [`foreign_obstacles`] checks it, to 1 mm):
+/// of the six faces, the cut that keeps the most of the box; `None` where
+/// no cut keeps at least `min_m` of it across. For a box the arm touches
+/// where it stands once the planner has left the robot's own points out
+/// (`PlanOptions::robot_body`): something lying against the arm, whose
+/// rest the arm must not sweep through.
+pub fn cut_clear_of_arm(
+    seen: &BoxObstacle,
+    world_from_base: Isometry3<f64>,
+    model: &ArmModel,
+    arm: &Ur5e,
+    current: &Joints,
+    min_m: f64,
+) -> Option<BoxObstacle> {
+    let cut = |axis: usize, sign: f64, by: f64| {
+        let mut half = seen.half_extents_m;
+        half[axis] -= by / 2.0;
+        let mut shift = Vector3::zeros();
+        shift[axis] = -sign * by / 2.0;
+        BoxObstacle {
+            name: seen.name.clone(),
+            world_from_box: seen.world_from_box * Translation3::from(shift),
+            half_extents_m: half,
+        }
+    };
+    let free = |o: &BoxObstacle| {
+        CollisionWorld::new(world_from_base, std::slice::from_ref(o), model.clone())
+            .collision(arm, current)
+            .is_none()
+    };
+    let mut best: Option<(f64, BoxObstacle)> = None;
+    for axis in 0..3 {
+        let most = 2.0 * seen.half_extents_m[axis] - min_m;
+        for sign in [1.0, -1.0] {
+            if most <= 0.0 || !free(&cut(axis, sign, most)) {
+                continue;
+            }
+            let (mut touching, mut clear) = (0.0, most);
+            while clear - touching > 1e-3 {
+                let mid = 0.5 * (touching + clear);
+                if free(&cut(axis, sign, mid)) {
+                    clear = mid;
+                } else {
+                    touching = mid;
+                }
+            }
+            let kept = (2.0 * seen.half_extents_m[axis] - clear) / (2.0 * seen.half_extents_m[axis]);
+            if best.as_ref().is_none_or(|(k, _)| kept > *k) {
+                best = Some((kept, cut(axis, sign, clear)));
+            }
+        }
+    }
+    best.map(|(_, o)| o)
 }
 
 /// Obstacles in the world, and where the robot stands.
@@ -584,6 +644,60 @@ mod tests {
             world_from_box: Isometry3::translation(0.0, 0.0, z - 0.05),
             half_extents_m: Vector3::new(1.5, 1.5, 0.05),
         }
+    }
+
+    /// Something standing under the forearm (level at home), its top 3 cm
+    /// into the arm where it stands: kept with its top lowered clear of the
+    /// arm (the cheapest of the six cuts), the rest of it as it was; a box
+    /// the arm holds whole cannot be cut and keep 1 cm.
+    #[test]
+    fn a_box_against_the_arm_is_cut_back_clear_of_it() {
+        let arm = Ur5e::default();
+        let frames = arm.forward_frames(&HOME);
+        let (elbow, wrist) = (frames[2].translation.vector, frames[3].translation.vector);
+        assert!((elbow.z - wrist.z).abs() < 1e-9, "the forearm is level at home");
+        let under = 0.5 * (elbow + wrist);
+        let (top, height) = (under.z - 0.03, 0.3);
+        let seen = BoxObstacle {
+            name: "pile".to_owned(),
+            world_from_box: Isometry3::translation(under.x, under.y, top - height / 2.0),
+            half_extents_m: Vector3::new(0.1, 0.1, height / 2.0),
+        };
+        let model = ArmModel::default();
+        let touches = |o: &BoxObstacle| {
+            CollisionWorld::new(Isometry3::identity(), std::slice::from_ref(o), model.clone())
+                .collision(&arm, &HOME)
+                .is_some()
+        };
+        assert!(touches(&seen));
+        let cut = cut_clear_of_arm(&seen, Isometry3::identity(), &model, &arm, &HOME, 0.01).expect("a cut");
+        assert!(!touches(&cut));
+        let corners = |o: &BoxObstacle| {
+            let c = o.world_from_box.translation.vector;
+            (c - o.half_extents_m, c + o.half_extents_m)
+        };
+        let ((lo, hi), (cut_lo, cut_hi)) = (corners(&seen), corners(&cut));
+        // The same footprint and bottom; the top lowered, by less than a third.
+        for i in 0..2 {
+            assert!((cut_lo[i] - lo[i]).abs() < 1e-9 && (cut_hi[i] - hi[i]).abs() < 1e-9);
+        }
+        assert!((cut_lo.z - lo.z).abs() < 1e-9);
+        assert!(cut_hi.z < hi.z && cut_hi.z > hi.z - height / 3.0, "{cut_hi:?}");
+        // And as little as frees the arm: 2 mm higher touches again.
+        let mut higher = cut.clone();
+        higher.half_extents_m.z += 0.001;
+        higher.world_from_box.translation.vector.z += 0.001;
+        assert!(touches(&higher));
+        let inside = BoxObstacle {
+            name: "inside".to_owned(),
+            world_from_box: Isometry3::translation(under.x, under.y, under.z),
+            half_extents_m: Vector3::new(0.01, 0.01, 0.01),
+        };
+        assert!(touches(&inside));
+        assert_eq!(
+            cut_clear_of_arm(&inside, Isometry3::identity(), &model, &arm, &HOME, 0.01),
+            None
+        );
     }
 
     #[test]

@@ -23,10 +23,13 @@
 //!   the world (mvgrasp grasp frame); the optional `scene` is the planner's
 //!   answer, `{"detected": [{"id", "position", "orientation", "extent_min_m",
 //!   "extent_max_m"}], "table_plane": {"normal", "offset_m"}, "workspace":
-//!   {"min", "max"}, "obstacles": [{"min", "max"}]}` (`obstacles`, optional:
-//!   the planner's boxes outside the workspace), turned into obstacles
-//!   exactly as `pick` turns a planner's answer into them
-//!   (`obstacles_left_out` in the answer: the boxes taken for the cell). A `movel` step carries its joint
+//!   {"min", "max"}, "obstacles": [{"min", "max"}], "robot_body_left_out"}`
+//!   (`obstacles`, optional: the planner's boxes outside the workspace;
+//!   `robot_body_left_out`, default false: the planner was asked with the
+//!   robot's body), turned into obstacles exactly as `pick` turns a
+//!   planner's answer into them (`obstacles_left_out` in the answer: the
+//!   boxes taken for the cell; `obstacles_cut`: those against the arm
+//!   where it stands, kept cut back clear of it). A `movel` step carries its joint
 //!   samples every centimetre (`path`), so the straight line is the one the
 //!   bridge checked. `refused` says, for each better-ranked grasp that was
 //!   skipped, why. The optional `released` (default 0) counts the objects
@@ -48,7 +51,7 @@ use serde::Deserialize;
 
 use crate::collision::BoxObstacle;
 use crate::error::{Error, Result};
-use crate::pick::{GraspTarget, PickConfig, PoseJson, plan_pick};
+use crate::pick::{GraspTarget, PickConfig, PoseJson, SeenObstacles, plan_pick};
 use crate::planner::{ObjectBox, obstacles, outside_box};
 use crate::ur5e::{Joints, Ur5e};
 
@@ -103,6 +106,11 @@ struct SceneJson {
     /// (`PlanGraspsResponse.obstacles`); absent: none.
     #[serde(default)]
     obstacles: Vec<OutsideJson>,
+    /// Whether the planner was asked with the robot's body where it stands
+    /// (`robot_body`) and left its points out: a box the arm touches there
+    /// is then kept, cut back clear of the arm ([`PickConfig::add_seen_obstacles`]).
+    #[serde(default)]
+    robot_body_left_out: bool,
 }
 
 /// A box seen outside the workspace: its corners, and the index in
@@ -256,7 +264,7 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                 .collect::<Result<Vec<_>>>()?;
             let mut config = config.clone();
             config.released = plan.released;
-            let mut left_out = Vec::new();
+            let mut seen_out = SeenObstacles::default();
             let scene = match &plan.scene {
                 Some(scene) => {
                     let (objects, table) = scene_obstacles(scene)?;
@@ -282,12 +290,15 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                         })
                         .collect::<Result<Vec<_>>>()?;
                     crate::ur5e::check_joints("current", &plan.current)?;
-                    left_out = config.add_seen_obstacles(arm, &seen, &plan.current);
+                    seen_out =
+                        config.add_seen_obstacles(arm, &seen, &plan.current, scene.robot_body_left_out);
                     objects
                 }
                 None => Vec::new(),
             };
-            let left_out: Vec<_> = left_out
+            let cut = seen_out.cut;
+            let left_out: Vec<_> = seen_out
+                .left_out
                 .into_iter()
                 .map(|(name, why)| serde_json::json!({"obstacle": name, "why": why}))
                 .collect();
@@ -302,6 +313,7 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                             "steps": pick.steps,
                             "refused": refused,
                             "obstacles_left_out": left_out,
+                            "obstacles_cut": cut,
                         }));
                     }
                     Err(e @ Error::InvalidInput { .. }) => return Err(e),
@@ -316,6 +328,7 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                 "steps": [],
                 "refused": refused,
                 "obstacles_left_out": left_out,
+                "obstacles_cut": cut,
             }))
         }
     }
@@ -488,21 +501,25 @@ mod tests {
     /// The planner's boxes outside the workspace: one in the arm's way
     /// refuses the pick and names itself; one far off changes nothing; one
     /// over the robot's base is taken for the cell and said so.
+    /// One top-down grasp of a 4 cm object at (0, -0.45), the arm at home,
+    /// the scene ending in `rest` (its `obstacles` and any other field).
+    fn plan_among(rest: &str) -> serde_json::Value {
+        let line = format!(
+            r#"{{"plan": {{"grasps": [
+            {{"position": [0.0, -0.45, 0.05], "orientation": [1, 0, 0, 0], "width_m": 0.05, "object": 0}}],
+            "scene": {{"detected": [{{"id": 0, "position": [0.0, -0.45, 0.03], "orientation": [0, 0, 0, 1],
+              "extent_min_m": [-0.02, -0.02, -0.03], "extent_max_m": [0.02, 0.02, 0.03]}}],
+              "table_plane": {{"normal": [0, 0, 1], "offset_m": 0.0}},
+              "workspace": {{"min": [-0.3, -0.7, -0.05], "max": [0.3, -0.3, 0.4]}},
+              {rest}}},
+            "current": [0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0]}}}}"#
+        );
+        ask(&line.replace('\n', " "))
+    }
+
     #[test]
     fn boxes_seen_outside_the_workspace_keep_the_arm_clear() {
-        let plan = |obstacles: &str| {
-            let line = format!(
-                r#"{{"plan": {{"grasps": [
-                {{"position": [0.0, -0.45, 0.05], "orientation": [1, 0, 0, 0], "width_m": 0.05, "object": 0}}],
-                "scene": {{"detected": [{{"id": 0, "position": [0.0, -0.45, 0.03], "orientation": [0, 0, 0, 1],
-                  "extent_min_m": [-0.02, -0.02, -0.03], "extent_max_m": [0.02, 0.02, 0.03]}}],
-                  "table_plane": {{"normal": [0, 0, 1], "offset_m": 0.0}},
-                  "workspace": {{"min": [-0.3, -0.7, -0.05], "max": [0.3, -0.3, 0.4]}},
-                  "obstacles": [{obstacles}]}},
-                "current": [0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0]}}}}"#
-            );
-            ask(&line.replace('\n', " "))
-        };
+        let plan = |obstacles: &str| plan_among(&format!(r#""obstacles": [{obstacles}]"#));
         let free = plan("");
         assert_eq!(
             (free["ok"].clone(), free["grasp_index"].clone()),
@@ -539,6 +556,30 @@ mod tests {
         assert!(
             bad["error"].as_str().unwrap().contains("scene.obstacles"),
             "{bad}"
+        );
+    }
+
+    /// A box under the forearm where the arm stands (home), its top 3 cm
+    /// into it: taken for the arm itself unless the planner was asked with
+    /// the robot's body; then kept, cut back clear of the arm, and said so.
+    #[test]
+    fn a_box_against_the_arm_is_kept_cut_when_the_body_was_left_out() {
+        let plan = |body: bool| {
+            plan_among(&format!(
+                r#""obstacles": [{{"min": [-0.25, -0.1, 0.25], "max": [-0.15, 0.1, 0.5575]}}],
+                "robot_body_left_out": {body}"#
+            ))
+        };
+        let told = plan(true);
+        assert_eq!(told["ok"], true, "{told}");
+        assert_eq!(told["obstacles_cut"], serde_json::json!(["obstacle 0"]), "{told}");
+        assert_eq!(told["obstacles_left_out"], serde_json::json!([]), "{told}");
+        let not_told = plan(false);
+        assert_eq!(not_told["obstacles_cut"], serde_json::json!([]), "{not_told}");
+        assert_eq!(
+            not_told["obstacles_left_out"][0]["why"],
+            crate::collision::TOUCHES_ARM,
+            "{not_told}"
         );
     }
 

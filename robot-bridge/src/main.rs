@@ -358,14 +358,17 @@ fn pick(
         config.released = read_basket_count(path)?;
     }
     config.obstacles.push(planned.table.clone());
-    let left_out = config.add_seen_obstacles(arm, &planned.outside, &current);
+    let seen = config.add_seen_obstacles(arm, &planned.outside, &current, settings.planner.robot_body);
     println!(
         "{} boxes outside the workspace kept clear of, {} taken for the cell",
-        planned.outside.len() - left_out.len(),
-        left_out.len()
+        planned.outside.len() - seen.left_out.len(),
+        seen.left_out.len()
     );
-    for (name, why) in &left_out {
+    for (name, why) in &seen.left_out {
         println!("  {name}: {why}");
+    }
+    for name in &seen.cut {
+        println!("  {name}: against the arm where it stands, kept cut back clear of it");
     }
     let failed = match files.failed_picks.map(read_if_present).transpose()?.flatten() {
         Some(text) => robot_bridge::pick::parse_failed_picks(&text)?,

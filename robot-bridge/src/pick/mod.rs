@@ -276,6 +276,19 @@ pub enum Step {
     },
 }
 
+/// What became of the boxes the planner saw outside its workspace
+/// ([`PickConfig::add_seen_obstacles`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SeenObstacles {
+    /// Those taken for the cell itself, by name, and why.
+    pub left_out: Vec<(String, &'static str)>,
+    /// Those kept cut back clear of the arm where it stands, by name.
+    pub cut: Vec<String>,
+}
+
+/// The least a box cut back clear of the arm keeps across (m).
+const MIN_CUT_KEPT_M: f64 = 0.01;
+
 /// A feasible pick of one grasp.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PickPlan {
@@ -290,14 +303,19 @@ impl PickConfig {
     /// with the detected object it continues, if any) to the fixed
     /// obstacles, leaving out those that are the cell itself
     /// ([`crate::collision::foreign_obstacles`], the arm at `current`); a
-    /// box that continues an object goes to [`Self::object_parts`]. Returns
-    /// those left out and why.
+    /// box that continues an object goes to [`Self::object_parts`]. With
+    /// `body_left_out` (the planner was told the robot's body and left its
+    /// points out), a box the arm touches where it stands is something
+    /// lying against the arm: it is kept, cut back clear of the arm
+    /// ([`crate::collision::cut_clear_of_arm`]), so that no move sweeps
+    /// through the rest of it; left out only where no cut keeps 1 cm of it.
     pub fn add_seen_obstacles(
         &mut self,
         arm: &Ur5e,
         seen: &[(BoxObstacle, Option<usize>)],
         current: &Joints,
-    ) -> Vec<(String, &'static str)> {
+        body_left_out: bool,
+    ) -> SeenObstacles {
         let boxes: Vec<BoxObstacle> = seen.iter().map(|(o, _)| o.clone()).collect();
         let verdicts = crate::collision::foreign_obstacles(
             &boxes,
@@ -308,15 +326,36 @@ impl PickConfig {
             current,
             crate::collision::BASE_COLUMN_RADIUS_M,
         );
-        let mut left_out = Vec::new();
+        let mut out = SeenObstacles::default();
         for ((o, object), why) in seen.iter().zip(verdicts) {
-            match (why, object) {
-                (Some(why), _) => left_out.push((o.name.clone(), why)),
-                (None, Some(k)) => self.object_parts.push((*k, o.clone())),
-                (None, None) => self.obstacles.push(o.clone()),
+            let cut = match why {
+                Some(crate::collision::TOUCHES_ARM) if body_left_out => crate::collision::cut_clear_of_arm(
+                    o,
+                    self.world_from_base,
+                    &self.arm_model,
+                    arm,
+                    current,
+                    MIN_CUT_KEPT_M,
+                ),
+                _ => None,
+            };
+            let kept = match (why, cut) {
+                (_, Some(cut)) => {
+                    out.cut.push(o.name.clone());
+                    cut
+                }
+                (Some(why), None) => {
+                    out.left_out.push((o.name.clone(), why));
+                    continue;
+                }
+                (None, None) => o.clone(),
+            };
+            match object {
+                Some(k) => self.object_parts.push((*k, kept)),
+                None => self.obstacles.push(kept),
             }
         }
-        left_out
+        out
     }
 
     /// The robot's body at `q`, hand open, as the planner leaves its points
