@@ -206,10 +206,7 @@ pub fn foreign_obstacles(
             Some("meets the cell's fixed obstacles")
         } else if on_base {
             Some("over the robot's base")
-        } else if CollisionWorld::new(world_from_base, std::slice::from_ref(o), model.clone())
-            .collision(arm, current)
-            .is_some()
-        {
+        } else if touches_arm(o, world_from_base, model, arm, current) {
             Some(TOUCHES_ARM)
         } else {
             None
@@ -217,6 +214,19 @@ pub fn foreign_obstacles(
         verdicts.push(why);
     }
     verdicts
+}
+
+/// Whether the arm and hand at `current` (the hand fully open) touch `o`.
+fn touches_arm(
+    o: &BoxObstacle,
+    world_from_base: Isometry3<f64>,
+    model: &ArmModel,
+    arm: &Ur5e,
+    current: &Joints,
+) -> bool {
+    CollisionWorld::new(world_from_base, std::slice::from_ref(o), model.clone())
+        .collision(arm, current)
+        .is_some()
 }
 
 /// `seen` cut back from one face, as little as frees the arm and hand at
@@ -245,11 +255,7 @@ pub fn cut_clear_of_arm(
             half_extents_m: half,
         }
     };
-    let free = |o: &BoxObstacle| {
-        CollisionWorld::new(world_from_base, std::slice::from_ref(o), model.clone())
-            .collision(arm, current)
-            .is_none()
-    };
+    let free = |o: &BoxObstacle| !touches_arm(o, world_from_base, model, arm, current);
     let mut best: Option<(f64, BoxObstacle)> = None;
     for axis in 0..3 {
         let most = 2.0 * seen.half_extents_m[axis] - min_m;

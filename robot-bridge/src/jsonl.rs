@@ -498,9 +498,6 @@ mod tests {
         }
     }
 
-    /// The planner's boxes outside the workspace: one in the arm's way
-    /// refuses the pick and names itself; one far off changes nothing; one
-    /// over the robot's base is taken for the cell and said so.
     /// One top-down grasp of a 4 cm object at (0, -0.45), the arm at home,
     /// the scene ending in `rest` (its `obstacles` and any other field).
     fn plan_among(rest: &str) -> serde_json::Value {
@@ -517,6 +514,9 @@ mod tests {
         ask(&line.replace('\n', " "))
     }
 
+    /// The planner's boxes outside the workspace: one in the arm's way
+    /// refuses the pick and names itself; one far off changes nothing; one
+    /// over the robot's base is taken for the cell and said so.
     #[test]
     fn boxes_seen_outside_the_workspace_keep_the_arm_clear() {
         let plan = |obstacles: &str| plan_among(&format!(r#""obstacles": [{obstacles}]"#));
