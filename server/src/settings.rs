@@ -190,6 +190,10 @@ pub struct DecodeSettings {
     /// and still be decoded at the full stroke for the hand check to judge
     /// (`DecodeConfig::wide_slack_m`, m; 0: the network's width alone refuses it).
     pub wide_slack_m: f64,
+    /// How far a grasp whose fingertips stop above the middle of its
+    /// object's height may be pushed towards it, where the hand check and
+    /// the table allow (`HandConfig::deepen_to_middle_m`, m; 0: never).
+    pub deepen_to_middle_m: f64,
 }
 
 impl Default for DecodeSettings {
@@ -199,6 +203,7 @@ impl Default for DecodeSettings {
             peaks_per_view: decode.peaks_per_view,
             centre_weight: decode.centre_weight,
             wide_slack_m: decode.wide_slack_m,
+            deepen_to_middle_m: mvgrasp_core::PlannerConfig::default().hand.deepen_to_middle_m,
         }
     }
 }
@@ -517,6 +522,13 @@ impl Settings {
         if !(slack.is_finite() && (0.0..=0.1).contains(&slack)) {
             return bad("decode.wide_slack_m", format!("{slack} is not in [0, 0.1]"));
         }
+        let middle = self.decode.deepen_to_middle_m;
+        if !(middle.is_finite() && (0.0..=0.1).contains(&middle)) {
+            return bad(
+                "decode.deepen_to_middle_m",
+                format!("{middle} is not in [0, 0.1]"),
+            );
+        }
         if !(1..=64).contains(&self.decode.peaks_per_view) {
             return bad(
                 "decode.peaks_per_view",
@@ -565,6 +577,7 @@ impl Settings {
         config.decode.centre_weight = self.decode.centre_weight;
         config.decode.peaks_per_view = self.decode.peaks_per_view;
         config.decode.wide_slack_m = self.decode.wide_slack_m;
+        config.hand.deepen_to_middle_m = self.decode.deepen_to_middle_m;
         config.views = self.views.parse()?;
         Ok(config)
     }
@@ -683,7 +696,7 @@ mod tests {
         assert_eq!(defaults.cluster, mvgrasp_core::ClusterConfig::default());
         assert_eq!(defaults.decode, mvgrasp_core::DecodeConfig::default());
         let s = Settings::from_toml(
-            "[segment]\ntolerance_m = 0.02\ncrease_split = true\n[decode]\ncentre_weight = 0.5\npeaks_per_view = 8\nwide_slack_m = 0.03\n",
+            "[segment]\ntolerance_m = 0.02\ncrease_split = true\n[decode]\ncentre_weight = 0.5\npeaks_per_view = 8\nwide_slack_m = 0.03\ndeepen_to_middle_m = 0.04\n",
         )
         .unwrap();
         let config = s.planner_config().unwrap();
@@ -692,6 +705,8 @@ mod tests {
         assert_eq!(config.decode.centre_weight, 0.5);
         assert_eq!(config.decode.peaks_per_view, 8);
         assert_eq!(config.decode.wide_slack_m, 0.03);
+        assert_eq!(config.hand.deepen_to_middle_m, 0.04);
+        assert_eq!(defaults.hand, mvgrasp_core::PlannerConfig::default().hand);
         for slack in [-0.01, 0.2, f64::NAN] {
             let mut s = Settings::default();
             s.decode.wide_slack_m = slack;
@@ -700,6 +715,15 @@ mod tests {
                     .unwrap_err()
                     .to_string()
                     .contains("decode.wide_slack_m"),
+                "{slack}"
+            );
+            let mut s = Settings::default();
+            s.decode.deepen_to_middle_m = slack;
+            assert!(
+                s.validate()
+                    .unwrap_err()
+                    .to_string()
+                    .contains("decode.deepen_to_middle_m"),
                 "{slack}"
             );
         }

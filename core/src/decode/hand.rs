@@ -77,6 +77,13 @@ pub struct HandConfig {
     /// stay clear of the table ([`deepen`](super::deepen); m, 0: never): pads that reach
     /// lower on a tall, round object hold it below its widest section.
     pub deepen_m: f64,
+    /// Push a grasp that passes the check and whose fingertips stop above
+    /// the middle of its object's height (between its highest point
+    /// between the pads and the table) towards that middle, at most this
+    /// far, or half as far, where the hand still passes and the pads stay
+    /// clear of the table ([`deepen_to_middle`](super::deepen_to_middle);
+    /// m, 0: never). Tried before [`deepen`](super::deepen).
+    pub deepen_to_middle_m: f64,
 }
 
 impl Default for HandConfig {
@@ -109,6 +116,7 @@ impl Default for HandConfig {
             // sim/README.md: of top-down grasps stopping above the middle of
             // their object's height 0.87 held, reaching below it 0.96.
             deepen_m: 0.005,
+            deepen_to_middle_m: 0.0,
         }
     }
 }

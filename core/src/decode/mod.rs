@@ -14,4 +14,6 @@ pub use grasp::{DecodeConfig, Decoded, Grasp, Repairs, ViewPlacement, decode_vie
 pub use hand::HandConfig;
 pub use peaks::{NEGLIGIBLE_QUALITY, find_peaks, smooth, smoothed_peaks};
 pub use rank::{RankConfig, Ranked, Verdict, rank_grasps, rank_grasps_scored, rank_grasps_vetted};
-pub use repair::{contact_slopes, deepen, fit_opening, squaring_turn, turn_away};
+pub use repair::{
+    contact_slopes, deepen, deepen_to_middle, depth_to_middle, fit_opening, squaring_turn, turn_away,
+};

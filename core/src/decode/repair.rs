@@ -239,15 +239,109 @@ pub fn deepen(
     hand: &HandConfig,
     table: &TablePlane,
     table_clearance_m: f64,
-    mut passes: impl FnMut(&Isometry3<f64>) -> bool,
+    passes: impl FnMut(&Isometry3<f64>) -> bool,
 ) -> Option<Isometry3<f64>> {
     if hand.deepen_m <= 0.0 {
         return None;
     }
+    let pushes = [hand.deepen_m, hand.deepen_m / 2.0];
+    push_deeper(
+        world_from_grasp,
+        pushes,
+        width_m,
+        gripper,
+        table,
+        table_clearance_m,
+        passes,
+    )
+}
+
+/// How much further along its approach a grasp's fingertips would reach
+/// the middle of its object's height (m; the depth [`deepen_to_middle`]
+/// aims at): halfway between the highest of `object`'s points between the
+/// pads (at the executor's opening, back over the fingers and the
+/// approach) and the table, measured along the approach. `None` for an
+/// approach more than 60 degrees off straight down (the table is not
+/// under the object's far side), when no point lies between the pads, or
+/// when the fingertips already reach the middle.
+pub fn depth_to_middle(
+    world_from_grasp: &Isometry3<f64>,
+    width_m: f64,
+    gripper: &Gripper,
+    hand: &HandConfig,
+    table: &TablePlane,
+    object: &Obstacle<'_>,
+) -> Option<f64> {
+    let approach = world_from_grasp.rotation * Vector3::z();
+    let descent = -table.normal.dot(&approach);
+    if descent < 0.5 {
+        return None;
+    }
+    let to_table = table.height_of(&world_from_grasp.translation.vector) / descent;
+    if to_table <= 0.0 {
+        return None;
+    }
+    let open = widen(width_m, hand.opening_clearance_m, gripper);
+    let back = finger_reach(gripper, hand) + hand.approach_m;
+    let column = gap_box(open, to_table, 0.0, to_table + back, gripper);
+    let top = points_inside(world_from_grasp, &column, object, |g| f64::from(g[2]))
+        .into_iter()
+        .reduce(f64::min)?;
+    let middle = (top + to_table) / 2.0;
+    (middle > 0.0).then_some(middle)
+}
+
+/// A grasp whose fingertips stop above the middle of its object's height
+/// ([`depth_to_middle`]) pushed towards it, at most
+/// `hand.deepen_to_middle_m`, else half as far: the first of the two whose
+/// pads stay `table_clearance_m` above `table` and that `passes` (the hand
+/// check). `None` when neither does, when the push would be no deeper
+/// than [`deepen`]'s (`hand.deepen_m`), or when it is off (0).
+#[allow(clippy::too_many_arguments)]
+pub fn deepen_to_middle(
+    world_from_grasp: &Isometry3<f64>,
+    width_m: f64,
+    gripper: &Gripper,
+    hand: &HandConfig,
+    table: &TablePlane,
+    table_clearance_m: f64,
+    object: &Obstacle<'_>,
+    passes: impl FnMut(&Isometry3<f64>) -> bool,
+) -> Option<Isometry3<f64>> {
+    if hand.deepen_to_middle_m <= 0.0 {
+        return None;
+    }
+    let push = depth_to_middle(world_from_grasp, width_m, gripper, hand, table, object)?
+        .min(hand.deepen_to_middle_m);
+    if push <= hand.deepen_m {
+        return None;
+    }
+    push_deeper(
+        world_from_grasp,
+        [push, push / 2.0],
+        width_m,
+        gripper,
+        table,
+        table_clearance_m,
+        passes,
+    )
+}
+
+/// The first of `pushes` (m along the approach) whose pads stay
+/// `table_clearance_m` above `table` and that `passes`.
+fn push_deeper(
+    world_from_grasp: &Isometry3<f64>,
+    pushes: [f64; 2],
+    width_m: f64,
+    gripper: &Gripper,
+    table: &TablePlane,
+    table_clearance_m: f64,
+    mut passes: impl FnMut(&Isometry3<f64>) -> bool,
+) -> Option<Isometry3<f64>> {
     let closing = world_from_grasp.rotation * Vector3::x();
     let approach = world_from_grasp.rotation * Vector3::z();
     let lowest = super::grasp::lowest_pad_corner(&closing, &approach, width_m, gripper, table);
-    [hand.deepen_m, hand.deepen_m / 2.0].into_iter().find_map(|d| {
+    pushes.into_iter().find_map(|d| {
         let pose = nalgebra::Translation3::from(approach * d) * world_from_grasp;
         let clear = table.height_of(&pose.translation.vector) + lowest >= table_clearance_m;
         (clear && passes(&pose)).then_some(pose)
@@ -660,5 +754,82 @@ mod tests {
         };
         assert!(deepen(&grasp, 0.04, &gripper, &off, &table, 0.003, |_| true).is_none());
         assert!(deepen(&grasp, 0.04, &gripper, &hand, &table, 0.003, |_| false).is_none());
+    }
+
+    #[test]
+    fn a_grasp_goes_towards_the_middle_of_a_tall_object() {
+        let (table, gripper) = (table_at(0.0), Gripper::default());
+        let hand = HandConfig {
+            deepen_to_middle_m: 0.04,
+            ..HandConfig::default()
+        };
+        let identity = Isometry3::identity();
+        // A 4 x 4 cm box 13 cm tall, fingertips 3 cm below its top: the
+        // middle of its height is 3.5 cm further down, where the palm
+        // (7.2 cm behind the fingertips) stays 7 mm over it.
+        let own = framed(block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.13]));
+        let objects = [obstacle_of(&identity, &own)];
+        let hit =
+            |pose: &Isometry3<f64>| hand_collision(pose, 0.04, &gripper, &hand, &table, &objects, Some(0));
+        let grasp = top_down(0.0, 0.0, 0.10);
+        let middle = depth_to_middle(&grasp, 0.04, &gripper, &hand, &table, &objects[0]).expect("above it");
+        assert!((middle - 0.035).abs() < 1e-6, "{middle}");
+        let deeper = deepen_to_middle(&grasp, 0.04, &gripper, &hand, &table, 0.003, &objects[0], |p| {
+            hit(p).is_none()
+        })
+        .expect("to the middle");
+        assert!((deeper.translation.z - 0.065).abs() < 1e-6, "{deeper}");
+        assert_eq!(hit(&deeper), None);
+        // At most deepen_to_middle_m; half as far when the full push fails.
+        let short = HandConfig {
+            deepen_to_middle_m: 0.02,
+            ..hand.clone()
+        };
+        let capped = deepen_to_middle(&grasp, 0.04, &gripper, &short, &table, 0.003, &objects[0], |_| {
+            true
+        })
+        .expect("capped");
+        assert!((capped.translation.z - 0.08).abs() < 1e-6, "{capped}");
+        let half = deepen_to_middle(&grasp, 0.04, &gripper, &hand, &table, 0.003, &objects[0], |p| {
+            p.translation.z > 0.07
+        })
+        .expect("half");
+        assert!((half.translation.z - 0.0825).abs() < 1e-6, "{half}");
+        // Off, refused by the check, already past the middle of a 5 cm
+        // box, or coming from the side: none.
+        let off = HandConfig {
+            deepen_to_middle_m: 0.0,
+            ..hand.clone()
+        };
+        assert!(
+            deepen_to_middle(&grasp, 0.04, &gripper, &off, &table, 0.003, &objects[0], |_| true).is_none()
+        );
+        assert!(
+            deepen_to_middle(&grasp, 0.04, &gripper, &hand, &table, 0.003, &objects[0], |_| {
+                false
+            })
+            .is_none()
+        );
+        let low = framed(block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.05]));
+        let low_objects = [obstacle_of(&identity, &low)];
+        let over_low = top_down(0.0, 0.0, 0.02);
+        assert_eq!(
+            depth_to_middle(&over_low, 0.04, &gripper, &hand, &table, &low_objects[0]),
+            None
+        );
+        let side = Isometry3::from_parts(
+            Translation3::new(-0.05, 0.0, 0.06),
+            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), std::f64::consts::FRAC_PI_2),
+        );
+        assert_eq!(
+            depth_to_middle(&side, 0.04, &gripper, &hand, &table, &objects[0]),
+            None
+        );
+        // No points between the pads: nothing to measure.
+        let beside = top_down(0.2, 0.0, 0.10);
+        assert_eq!(
+            depth_to_middle(&beside, 0.04, &gripper, &hand, &table, &objects[0]),
+            None
+        );
     }
 }

@@ -5,8 +5,8 @@ use super::plan::{ObjectRefusals, RankedLast};
 use nalgebra::{Isometry3, Vector3};
 
 use crate::decode::{
-    Collision, Grasp, HandConfig, Obstacle, Repairs, Verdict, contact_slopes, deepen, fit_opening,
-    hand_collision, hand_out_of_view, squaring_turn, turn_away,
+    Collision, Grasp, HandConfig, Obstacle, Repairs, Verdict, contact_slopes, deepen, deepen_to_middle,
+    fit_opening, hand_collision, hand_out_of_view, squaring_turn, turn_away,
 };
 use crate::gripper::Gripper;
 use crate::segment::TablePlane;
@@ -127,16 +127,31 @@ pub(super) fn vet(
     };
     // Deeper where the hand and the table allow: fingertips
     // that stop above the middle of a round object let it slip.
+    // Towards the middle of its height first, else a little.
     let deeper = hand.enabled.then(|| {
-        deepen(
-            &g.world_from_grasp,
-            g.width_m,
-            v.gripper,
-            hand,
-            v.table,
-            v.table_clearance_m,
-            |pose| hit(pose, g.width_m).is_none(),
-        )
+        let to_middle = own.and_then(|i| {
+            deepen_to_middle(
+                &g.world_from_grasp,
+                g.width_m,
+                v.gripper,
+                hand,
+                v.table,
+                v.table_clearance_m,
+                &v.obstacles[i],
+                |pose| hit(pose, g.width_m).is_none(),
+            )
+        });
+        to_middle.or_else(|| {
+            deepen(
+                &g.world_from_grasp,
+                g.width_m,
+                v.gripper,
+                hand,
+                v.table,
+                v.table_clearance_m,
+                |pose| hit(pose, g.width_m).is_none(),
+            )
+        })
     });
     let mut g = match deeper.flatten() {
         Some(world_from_grasp) => Grasp {

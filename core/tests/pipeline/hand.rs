@@ -491,3 +491,53 @@ fn grasps_go_deeper_where_the_hand_still_passes() {
         "no grasp squared to a box turned 0.4 rad"
     );
 }
+
+/// With `deepen_to_middle_m`, a top grasp on a 12 cm box goes towards the
+/// middle of the box's height, further than the 5 mm step alone and never
+/// further than allowed; side grasps and everything else about each grasp
+/// stay as they were.
+#[test]
+fn grasps_on_a_tall_box_go_towards_its_middle() {
+    let scene = Scene {
+        table_z: 0.0,
+        table_half: [0.6, 0.4],
+        shapes: vec![Shape::standing_box(0.0, 0.0, 0.0, 0.4, [0.06, 0.04, 0.12])],
+    };
+    let camera = Camera::orbit(Vector3::zeros(), 0.8, 50.0, -90.0);
+    let hand = HandConfig::default();
+    let middle = HandConfig {
+        deepen_to_middle_m: 0.04,
+        ..hand.clone()
+    };
+    let [towards, step_only] = plans_with_hands(
+        &scene,
+        &camera,
+        &mut MomentsNet::default(),
+        [middle.clone(), hand.clone()],
+    );
+    assert_eq!(towards.grasps.len(), step_only.grasps.len());
+    let mut further = 0;
+    for (t, s) in towards.grasps.iter().zip(&step_only.grasps) {
+        assert_eq!(
+            (t.object_id, t.view, t.pixel, t.quality, t.width_m),
+            (s.object_id, s.view, s.pixel, s.quality, s.width_m)
+        );
+        let approach = s.world_from_grasp.rotation * Vector3::z();
+        let along =
+            (t.world_from_grasp.translation.vector - s.world_from_grasp.translation.vector).dot(&approach);
+        assert!(along <= middle.deepen_to_middle_m + 1e-9, "moved {along} m");
+        // Fingertips never pushed below the box's middle (6 cm) from above.
+        if approach.z < -0.5 && along > 1e-9 {
+            assert!(
+                t.world_from_grasp.translation.z >= 0.06 - 1e-3,
+                "{}",
+                t.world_from_grasp.translation.z
+            );
+            further += 1;
+        }
+        if approach.z > -0.5 {
+            assert!(along.abs() < 1e-9, "a side grasp moved {along} m");
+        }
+    }
+    assert!(further > 0, "no top grasp went towards the middle of a 12 cm box");
+}
