@@ -206,7 +206,8 @@ fn endpoint(address: &str, credentials: &Credentials) -> Result<Endpoint> {
 /// What a failed call's status means, in gRPC's terms. tonic reports its own
 /// deadline as CANCELLED ("Timeout expired"): that is DEADLINE_EXCEEDED. A
 /// call the connection dropped before an answer (hyper's "operation was
-/// canceled" when the server closed or sent GOAWAY first; UNKNOWN with the
+/// canceled" when the server closed or sent GOAWAY first; UNKNOWN, or
+/// INTERNAL "h2 protocol error" for a GOAWAY racing the call, with the
 /// transport error as its source when the connection broke) is UNAVAILABLE,
 /// as grpc-core reports it. `endpoint` and `timeout` go into the message.
 fn normalized(status: tonic::Status, endpoint: &str, timeout: Option<Duration>) -> tonic::Status {
@@ -225,7 +226,7 @@ fn normalized(status: tonic::Status, endpoint: &str, timeout: Option<Duration>) 
             "{endpoint} closed the connection before answering ({})",
             status.message()
         )),
-        tonic::Code::Unknown if transport() => tonic::Status::unavailable(format!(
+        tonic::Code::Unknown | tonic::Code::Internal if transport() => tonic::Status::unavailable(format!(
             "the connection to {endpoint} broke under the call ({})",
             status.message()
         )),
