@@ -129,6 +129,7 @@ pub(super) fn vet(
     // that stop above the middle of a round object let it slip.
     // Towards the middle of its height first, else a little.
     let deeper = hand.enabled.then(|| {
+        let passes = |pose: &Isometry3<f64>| hit(pose, g.width_m).is_none();
         let to_middle = own.and_then(|i| {
             deepen_to_middle(
                 &g.world_from_grasp,
@@ -138,7 +139,7 @@ pub(super) fn vet(
                 v.table,
                 v.table_clearance_m,
                 &v.obstacles[i],
-                |pose| hit(pose, g.width_m).is_none(),
+                passes,
             )
         });
         to_middle.or_else(|| {
@@ -149,7 +150,7 @@ pub(super) fn vet(
                 hand,
                 v.table,
                 v.table_clearance_m,
-                |pose| hit(pose, g.width_m).is_none(),
+                passes,
             )
         })
     });
