@@ -25,7 +25,8 @@ def parse(argv):
     p.add_argument("--suite", choices=SUITES, default="quick")
     p.add_argument("--camera", default="topdown", help="topdown, angled, random or all (topdown,angled,random)")
     p.add_argument("--pools", default="test-a,test-b",
-                   help="pools to run (train, or train-large: its meshes at household sizes, only for tuning; "
+                   help="pools to run (train, train-large: its meshes at household sizes, or train-round: "
+                        "generated rounded shapes, only for tuning; "
                         "test-a, test-b only to report a chosen candidate)")
     p.add_argument("--scenarios", default="isolated,packed,pile",
                    help="isolated, packed, pile (the default) and clutter (ten objects, asked by name)")

@@ -62,9 +62,30 @@ def _load_mesh(spec):
         mesh = trimesh.load(os.path.join(assets.robosuite_assets(), spec.path), force="mesh")
     elif spec.source == "robosuite_boxes":
         return _boxes_mesh(os.path.join(assets.robosuite_assets(), spec.path))
+    elif spec.source == "generated":
+        mesh = superellipsoid(spec.extra)
+        return mesh, [np.asarray(mesh.vertices, float)]
     else:
         raise ValueError(f"{spec.name}: unknown source {spec.source!r}")
     return mesh, None
+
+
+def superellipsoid(shape, subdivisions=4):
+    """A superellipsoid mesh (`pools.round_shape`'s `extra`): an icosphere's
+    vertices pushed along their directions onto the surface
+    `(|u/a|^(2/e_xy) + |v/b|^(2/e_xy))^(e_xy/e_z) + |w/c|^(2/e_z) = 1`;
+    a cylinder's profile axis `w` turned onto x."""
+    import trimesh  # noqa: PLC0415
+
+    sphere = trimesh.creation.icosphere(subdivisions=subdivisions)
+    d = np.asarray(sphere.vertices, float)
+    (a, b, c), e_z, e_xy = shape["half_m"], shape["e_z"], shape["e_xy"]
+    across = (np.abs(d[:, 0] / a) ** (2 / e_xy) + np.abs(d[:, 1] / b) ** (2 / e_xy)) ** (e_xy / e_z)
+    radius = (across + np.abs(d[:, 2] / c) ** (2 / e_z)) ** (-e_z / 2)
+    v = d * radius[:, None]
+    if shape["kind"] == "cylinder":
+        v = v[:, [2, 0, 1]]
+    return trimesh.Trimesh(vertices=v, faces=np.asarray(sphere.faces), process=False)
 
 
 def _boxes_mesh(path):

@@ -1,11 +1,15 @@
 """The written split of objects: what may be trained or tuned on, and what only reports.
 
-- `train`: `pybullet_data/random_urdfs/000`-`799`. Only this pool (with our
-  procedural families and sample meshes) may feed `sim datagen`, training
-  or tuning of any planner setting.
+- `train`: `pybullet_data/random_urdfs/000`-`799`. Only the train pools
+  (this and the two below, with our procedural families and sample meshes)
+  may feed `sim datagen`, training or tuning of any planner setting.
 - `train-large`: the same meshes scaled to household sizes (longest side
   10-22 cm, fixed per mesh; heavier with their volume): on the train side,
   for what the URDF's sizes never show. Not a pool of its own meshes.
+- `train-round`: rounded shapes generated here (`ROUND_COUNT`
+  superellipsoids: balls, oblongs, rounded blocks, cylinders; longest
+  side 6-20 cm): on the train side, for the rounded household shapes the
+  angular `random_urdfs` never show.
 - `test-a`: `random_urdfs/800`-`999`, at the URDF's scale.
 - `test-b`: household shapes at realistic sizes (4-25 cm): robosuite's
   objects and pybullet_data's named meshes.
@@ -17,6 +21,8 @@ episode draws the next mesh of the pool in their place.
 """
 
 from dataclasses import dataclass, field
+
+import numpy as np
 
 TRAIN_RANDOM = range(0, 800)
 TEST_A_RANDOM = range(800, 1000)
@@ -77,15 +83,48 @@ HOUSEHOLD = (
     ObjectSpec("square_nut", "robosuite_boxes", "objects/square-nut.xml", max_extent_m=0.10),
 )
 
+ROUND_COUNT = 120
+ROUND_M = (0.06, 0.20)
+ROUND_KINDS = ("ball", "oblong", "rounded_block", "cylinder")
+
+
+def round_shape(index):
+    """`train-round`'s object `index`: a superellipsoid, the same in every
+    run. Its kind cycles through `ROUND_KINDS` (a ball or egg, an oblong
+    like a lemon or a loaf, a rounded block, a cylinder lying on its side);
+    `extra` holds its semi-axes in its own frame (m; `half_m[2]` along the
+    profile axis `e_z` shapes, world z, or x for a cylinder), the two
+    exponents (`e_xy` the cross-section: 1 round, towards 0 square) and the
+    longest side, spread over `ROUND_M` by the golden ratio. Every exponent
+    is at most 1, so every shape is convex (its own collision part)."""
+    rng = np.random.default_rng([index, 47])
+    kind = ROUND_KINDS[index % len(ROUND_KINDS)]
+    a = (ROUND_M[0] + (ROUND_M[1] - ROUND_M[0]) * ((index * 0.6180339887) % 1.0)) / 2.0
+    if kind == "ball":
+        half, e_z, e_xy = (a, a * rng.uniform(0.8, 1.0), a * rng.uniform(0.75, 1.0)), 1.0, 1.0
+    elif kind == "oblong":
+        half, e_z, e_xy = (a, a * rng.uniform(0.4, 0.75), a * rng.uniform(0.35, 0.7)), 1.0, 1.0
+    elif kind == "rounded_block":
+        half = (a, a * rng.uniform(0.4, 1.0), a * rng.uniform(0.3, 0.9))
+        e_z, e_xy = rng.uniform(0.2, 0.6), rng.uniform(0.2, 0.6)
+    else:
+        r = a * rng.uniform(0.3, 0.6)
+        half, e_z, e_xy = (r, r, a), rng.uniform(0.1, 0.3), 1.0
+    extra = {"kind": kind, "half_m": tuple(round(float(h), 5) for h in half),
+             "e_z": round(float(e_z), 4), "e_xy": round(float(e_xy), 4)}
+    return ObjectSpec(f"round_{index:03d}", "generated", f"superellipsoid/{index:03d}", extra=extra)
+
+
 POOLS = {
     "train": tuple(random_urdf(i) for i in TRAIN_RANDOM),
     "train-large": tuple(random_urdf(i, large_size(i)) for i in TRAIN_RANDOM),
+    "train-round": tuple(round_shape(i) for i in range(ROUND_COUNT)),
     "test-a": tuple(random_urdf(i) for i in TEST_A_RANDOM),
     "test-b": HOUSEHOLD,
 }
 
 TEST_POOLS = ("test-a", "test-b")
-TRAIN_POOLS = ("train", "train-large")  # what may be trained or tuned on
+TRAIN_POOLS = ("train", "train-large", "train-round")  # what may be trained or tuned on
 RESIZED = {"train-large": "train"}  # pools of another pool's meshes, resized
 
 

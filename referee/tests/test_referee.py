@@ -86,6 +86,30 @@ class SplitTest(unittest.TestCase):
         self.assertAlmostEqual(big.mass_kg / small.mass_kg, k**3, places=6)
         self.assertTrue(pools.check_split())
 
+    def test_train_round_is_convex_rounded_shapes_on_the_train_side(self):
+        shapes = pools.pool("train-round")
+        self.assertEqual(len(shapes), pools.ROUND_COUNT)
+        self.assertIn("train-round", pools.TRAIN_POOLS)
+        self.assertEqual({o.extra["kind"] for o in shapes}, set(pools.ROUND_KINDS))
+        self.assertEqual(shapes, tuple(pools.round_shape(i) for i in range(pools.ROUND_COUNT)))
+        longest = [2 * max(o.extra["half_m"]) for o in shapes]
+        self.assertTrue(all(pools.ROUND_M[0] - 1e-4 <= m <= pools.ROUND_M[1] + 1e-4 for m in longest))
+        self.assertTrue(all(0 < o.extra["e_z"] <= 1 and 0 < o.extra["e_xy"] <= 1 for o in shapes))
+        for spec in shapes[:4]:
+            body = objects.make_body(spec, np.random.default_rng(5))
+            (a, b, c), e_z, e_xy = spec.extra["half_m"], spec.extra["e_z"], spec.extra["e_xy"]
+            v = body.vertices  # centred: the shape is symmetric about its origin
+            u = v[:, [1, 2, 0]] if spec.extra["kind"] == "cylinder" else v
+            f = (np.abs(u[:, 0] / a) ** (2 / e_xy) + np.abs(u[:, 1] / b) ** (2 / e_xy)) ** (e_xy / e_z) \
+                + np.abs(u[:, 2] / c) ** (2 / e_z)
+            np.testing.assert_allclose(f, 1.0, rtol=1e-6, err_msg=spec.name)
+            # One collision part, the shape itself: convex, so its hull is the part.
+            self.assertEqual(len(body.parts), 1, spec.name)
+            np.testing.assert_allclose(body.parts[0], body.vertices, atol=1e-12)
+            self.assertLess(abs(float(np.max(body.extents_m)) - 2 * max(a, b, c)), 0.02 * max(a, b, c), spec.name)
+            self.assertGreater(body.mass_kg, 0.0)
+        self.assertTrue(pools.check_split())
+
     def test_an_unknown_pool_is_refused(self):
         with self.assertRaisesRegex(ValueError, "unknown pool"):
             pools.pool("test-c")
