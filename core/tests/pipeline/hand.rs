@@ -298,12 +298,13 @@ fn grasps_into_a_neighbour_are_turned_away_and_ranked_after() {
 }
 
 /// The hand check without its repairs: no opening re-fit, no turn away
-/// from a neighbour.
+/// from a neighbour, no push deeper.
 fn hand_without_repairs() -> HandConfig {
     HandConfig {
         fit_opening: false,
         neighbour_turns_deg: Vec::new(),
         deepen_m: 0.0,
+        deepen_to_middle_m: 0.0,
         ..HandConfig::default()
     }
 }
@@ -443,11 +444,15 @@ fn tall_box() -> (Scene, Camera) {
 
 /// A grasp that passes the check goes 5 mm (or 2.5 mm) further along its
 /// approach when the hand still passes there, and stays as it was
-/// otherwise; nothing else about it changes.
+/// otherwise; nothing else about it changes (the push towards the middle
+/// off, as measured apart below).
 #[test]
 fn grasps_go_deeper_where_the_hand_still_passes() {
     let (scene, camera) = tall_box();
-    let hand = HandConfig::default();
+    let hand = HandConfig {
+        deepen_to_middle_m: 0.0,
+        ..HandConfig::default()
+    };
     let [deeper, as_planned] = plans_with_hands(
         &scene,
         &camera,
@@ -497,17 +502,18 @@ fn grasps_go_deeper_where_the_hand_still_passes() {
     );
 }
 
-/// With `deepen_to_middle_m`, a top grasp on a 12 cm box goes towards the
-/// middle of the box's height, further than the 5 mm step alone and never
-/// further than allowed; side grasps and everything else about each grasp
-/// stay as they were.
+/// By default (`deepen_to_middle_m`), a top grasp on a 12 cm box goes
+/// towards the middle of the box's height, further than the 5 mm step alone
+/// (`deepen_to_middle_m = 0`) and never further than allowed; side grasps
+/// and everything else about each grasp stay as they were.
 #[test]
 fn grasps_on_a_tall_box_go_towards_its_middle() {
     let (scene, camera) = tall_box();
-    let hand = HandConfig::default();
-    let middle = HandConfig {
-        deepen_to_middle_m: 0.04,
-        ..hand.clone()
+    let middle = HandConfig::default();
+    assert!(middle.deepen_to_middle_m > middle.deepen_m);
+    let hand = HandConfig {
+        deepen_to_middle_m: 0.0,
+        ..middle.clone()
     };
     let [towards, step_only] = plans_with_hands(
         &scene,
