@@ -93,10 +93,10 @@ def round_shape(index):
     run. Its kind cycles through `ROUND_KINDS` (a ball or egg, an oblong
     like a lemon or a loaf, a rounded block, a cylinder lying on its side);
     `extra` holds its semi-axes in its own frame (m; `half_m[2]` along the
-    profile axis `e_z` shapes, world z, or x for a cylinder), the two
-    exponents (`e_xy` the cross-section: 1 round, towards 0 square) and the
-    longest side, spread over `ROUND_M` by the golden ratio. Every exponent
-    is at most 1, so every shape is convex (its own collision part)."""
+    profile axis `e_z` shapes, world z, or x for a cylinder; the longest,
+    spread over `ROUND_M` by the golden ratio) and the two exponents (`e_xy`
+    the cross-section: 1 round, towards 0 square). Every exponent is at
+    most 1, so every shape is convex (its own collision part)."""
     rng = np.random.default_rng([index, 47])
     kind = ROUND_KINDS[index % len(ROUND_KINDS)]
     a = (ROUND_M[0] + (ROUND_M[1] - ROUND_M[0]) * ((index * 0.6180339887) % 1.0)) / 2.0

@@ -116,8 +116,7 @@ impl Default for HandConfig {
             // sim/README.md: of top-down grasps stopping above the middle of
             // their object's height 0.87 held, reaching below it 0.96.
             deepen_m: 0.005,
-            // The referee's train pools: +9 of 180 rounded shapes alone
-            // (+3 to +15), level on the rest
+            // Chosen on the referee's train pools
             // (docs/experiments/2026-12-02-towards-the-middle.md).
             deepen_to_middle_m: 0.04,
         }
