@@ -194,16 +194,22 @@ pub struct DecodeSettings {
     /// object's height may be pushed towards it, where the hand check and
     /// the table allow (`HandConfig::deepen_to_middle_m`, m; 0: never).
     pub deepen_to_middle_m: f64,
+    /// Refuse a grasp whose hand, where the approach starts, is inside
+    /// another object's box, as the robot-bridge's pre-grasp check would
+    /// (`HandConfig::pregrasp_boxes`).
+    pub pregrasp_boxes: bool,
 }
 
 impl Default for DecodeSettings {
     fn default() -> Self {
         let decode = mvgrasp_core::DecodeConfig::default();
+        let hand = mvgrasp_core::PlannerConfig::default().hand;
         Self {
             peaks_per_view: decode.peaks_per_view,
             centre_weight: decode.centre_weight,
             wide_slack_m: decode.wide_slack_m,
-            deepen_to_middle_m: mvgrasp_core::PlannerConfig::default().hand.deepen_to_middle_m,
+            deepen_to_middle_m: hand.deepen_to_middle_m,
+            pregrasp_boxes: hand.pregrasp_boxes,
         }
     }
 }
@@ -578,6 +584,7 @@ impl Settings {
         config.decode.peaks_per_view = self.decode.peaks_per_view;
         config.decode.wide_slack_m = self.decode.wide_slack_m;
         config.hand.deepen_to_middle_m = self.decode.deepen_to_middle_m;
+        config.hand.pregrasp_boxes = self.decode.pregrasp_boxes;
         config.views = self.views.parse()?;
         Ok(config)
     }
@@ -696,7 +703,7 @@ mod tests {
         assert_eq!(defaults.cluster, mvgrasp_core::ClusterConfig::default());
         assert_eq!(defaults.decode, mvgrasp_core::DecodeConfig::default());
         let s = Settings::from_toml(
-            "[segment]\ntolerance_m = 0.02\ncrease_split = true\n[decode]\ncentre_weight = 0.5\npeaks_per_view = 8\nwide_slack_m = 0.03\ndeepen_to_middle_m = 0.04\n",
+            "[segment]\ntolerance_m = 0.02\ncrease_split = true\n[decode]\ncentre_weight = 0.5\npeaks_per_view = 8\nwide_slack_m = 0.03\ndeepen_to_middle_m = 0.04\npregrasp_boxes = false\n",
         )
         .unwrap();
         let config = s.planner_config().unwrap();
@@ -706,6 +713,8 @@ mod tests {
         assert_eq!(config.decode.peaks_per_view, 8);
         assert_eq!(config.decode.wide_slack_m, 0.03);
         assert_eq!(config.hand.deepen_to_middle_m, 0.04);
+        assert!(!config.hand.pregrasp_boxes);
+        assert!(defaults.hand.pregrasp_boxes);
         assert_eq!(defaults.hand, mvgrasp_core::PlannerConfig::default().hand);
         for slack in [-0.01, 0.2, f64::NAN] {
             let mut s = Settings::default();

@@ -139,14 +139,57 @@ pub fn hand_collision(
         .iter()
         .map(|b| (b.lo.map(|v| v as f32).into(), b.hi.map(|v| v as f32).into()))
         .collect();
+    let by_points = obstacles.iter().enumerate().position(|(i, o)| {
+        let n = if own == Some(i) { hand_only } else { boxes.len() };
+        hits_object(world_from_grasp, &boxes[..n], &boxes_f32[..n], hand.min_points, o)
+    });
+    if by_points.is_some() || !hand.pregrasp_boxes {
+        return by_points.map(Collision::Object);
+    }
+    // Where the approach starts, the hand against the other objects'
+    // boxes, as the robot-bridge checks its pre-grasp.
+    let margin = Vector3::repeat(hand.pregrasp_box_margin_m);
+    let at_start = hand_boxes(preshaped, -hand.approach_m, 0.0, reach, gripper, hand).map(|b| GraspBox {
+        lo: b.lo - margin,
+        hi: b.hi + margin,
+    });
     obstacles
         .iter()
         .enumerate()
-        .position(|(i, o)| {
-            let n = if own == Some(i) { hand_only } else { boxes.len() };
-            hits_object(world_from_grasp, &boxes[..n], &boxes_f32[..n], hand.min_points, o)
-        })
+        .position(|(i, o)| own != Some(i) && at_start.iter().any(|b| meets_box(world_from_grasp, b, o)))
         .map(Collision::Object)
+}
+
+/// Whether `b` (grasp frame) overlaps `object`'s box (its seen extent, in
+/// its own frame): no separating axis among the two boxes' three axes each
+/// and the nine cross products between them.
+fn meets_box(world_from_grasp: &Isometry3<f64>, b: &GraspBox, object: &Obstacle<'_>) -> bool {
+    let object_from_grasp = object.world_from_object.inverse() * world_from_grasp;
+    let rotation = object_from_grasp.rotation.to_rotation_matrix().into_inner();
+    let grasp_axes = [0, 1, 2].map(|k| rotation.column(k).into_owned());
+    let object_axes = [Vector3::x(), Vector3::y(), Vector3::z()];
+    let half_object = (object.extent_max_m - object.extent_min_m) / 2.0;
+    let half_hand = (b.hi - b.lo) / 2.0;
+    let apart = object_from_grasp * Point3::from((b.lo + b.hi) / 2.0)
+        - Point3::from((object.extent_max_m + object.extent_min_m) / 2.0);
+    // Each box's half length along `axis` (any length), against the
+    // centres' distance along it.
+    let separates = |axis: Vector3<f64>| {
+        let spread = |axes: &[Vector3<f64>; 3], half: &Vector3<f64>| {
+            (0..3).map(|k| half[k] * axes[k].dot(&axis).abs()).sum::<f64>()
+        };
+        axis.norm_squared() > 1e-18
+            && apart.dot(&axis).abs() > spread(&object_axes, &half_object) + spread(&grasp_axes, &half_hand)
+    };
+    let crossed = object_axes
+        .iter()
+        .flat_map(|a| grasp_axes.iter().map(move |g| a.cross(g)));
+    !object_axes
+        .iter()
+        .chain(&grasp_axes)
+        .copied()
+        .chain(crossed)
+        .any(separates)
 }
 
 /// `f` of each of `object`'s points inside `b`, in the grasp frame (f32);
@@ -317,6 +360,118 @@ mod tests {
         };
         let object = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.06]);
         assert!(!collides(&grasp, 0.03, &off, &table, &object));
+    }
+
+    /// A flat object beside a taller one whose box, not its points, reaches
+    /// over the grasp: the hand is free all the way in, but where the
+    /// approach starts the palm is inside that box, where the robot-bridge
+    /// would refuse it.
+    #[test]
+    fn where_the_approach_starts_the_hand_keeps_out_of_a_taller_neighbours_box() {
+        let (hand, table, gripper) = (HandConfig::default(), table_at(0.0), Gripper::default());
+        let identity = Isometry3::identity();
+        let flat = block([-0.02, -0.02, 0.0], [0.02, 0.02, 0.01]);
+        // The neighbour: a 30 cm wall 16 cm out and a strip along the table
+        // from 7.5 cm out (the pre-shaped palm spans 7 cm each side).
+        let mut wall = block([0.16, -0.05, 0.0], [0.17, 0.05, 0.30]);
+        wall.extend(block([0.075, -0.05, 0.0], [0.17, 0.05, 0.005]));
+        let check = |hand: &HandConfig, neighbour: &[[f32; 3]]| {
+            let (own_lo, own_hi) = bounds(&flat);
+            let (lo, hi) = bounds(neighbour);
+            let objects = [
+                Obstacle {
+                    world_from_object: &identity,
+                    extent_min_m: &own_lo,
+                    extent_max_m: &own_hi,
+                    points: &flat,
+                },
+                Obstacle {
+                    world_from_object: &identity,
+                    extent_min_m: &lo,
+                    extent_max_m: &hi,
+                    points: neighbour,
+                },
+            ];
+            hand_collision(
+                &top_down(0.0, 0.0, 0.005),
+                0.06,
+                &gripper,
+                hand,
+                &table,
+                &objects,
+                Some(0),
+            )
+        };
+        assert_eq!(check(&hand, &wall), Some(Collision::Object(1)));
+        // The points alone: free.
+        let points_only = HandConfig {
+            pregrasp_boxes: false,
+            ..hand.clone()
+        };
+        assert_eq!(check(&points_only, &wall), None);
+        // Without the margin the palm stops 5 mm short of the box.
+        let bare = HandConfig {
+            pregrasp_box_margin_m: 0.0,
+            ..hand.clone()
+        };
+        assert_eq!(check(&bare, &wall), None);
+        // A neighbour lower than where the approach starts is no obstacle.
+        let mut low = block([0.16, -0.05, 0.0], [0.17, 0.05, 0.06]);
+        low.extend(block([0.075, -0.05, 0.0], [0.17, 0.05, 0.005]));
+        assert_eq!(check(&hand, &low), None);
+        // Nor is the grasp's own box: the same wall as the grasped object.
+        let (lo, hi) = bounds(&wall);
+        let alone = [Obstacle {
+            world_from_object: &identity,
+            extent_min_m: &lo,
+            extent_max_m: &hi,
+            points: &wall,
+        }];
+        let lone_grasp = top_down(0.0, 0.0, 0.005);
+        assert_eq!(
+            hand_collision(&lone_grasp, 0.06, &gripper, &hand, &table, &alone, Some(0)),
+            None
+        );
+    }
+
+    /// The box test against a turned box: a hand box 1 cm from a box turned
+    /// 45 degrees about z is inside the turned box's own bounds but clear of
+    /// the box itself.
+    #[test]
+    fn boxes_turned_against_each_other_meet_only_where_they_overlap() {
+        let corner = Vector3::repeat(0.05);
+        let (lo, hi) = (-corner, corner);
+        let turned = Isometry3::from_parts(
+            Translation3::identity(),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_4),
+        );
+        let object = Obstacle {
+            world_from_object: &turned,
+            extent_min_m: &lo,
+            extent_max_m: &hi,
+            points: &[],
+        };
+        let unit = GraspBox {
+            lo: Vector3::repeat(-0.01),
+            hi: Vector3::repeat(0.01),
+        };
+        // The turned box reaches 7.07 cm along x; its bounds 7.07 along y too.
+        let at = |x: f64, y: f64| Isometry3::translation(x, y, 0.0);
+        assert!(meets_box(&at(0.075, 0.0), &unit, &object));
+        assert!(!meets_box(&at(0.085, 0.0), &unit, &object));
+        // Near the bounds' corner (6 cm, 6 cm) but outside the turned box.
+        assert!(!meets_box(&at(0.065, 0.065), &unit, &object));
+        assert!(meets_box(&at(0.03, 0.03), &unit, &object));
+        // The hand box turned 45 degrees about x reaches 1.41 cm up and
+        // down: it meets the box's top (5 cm) from 6.41 cm up, not above.
+        let tilted = |z: f64| {
+            Isometry3::from_parts(
+                Translation3::new(0.0, 0.0, z),
+                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_4),
+            )
+        };
+        assert!(meets_box(&tilted(0.063), &unit, &object));
+        assert!(!meets_box(&tilted(0.066), &unit, &object));
     }
 
     #[test]

@@ -84,6 +84,16 @@ pub struct HandConfig {
     /// clear of the table ([`deepen_to_middle`](super::deepen_to_middle);
     /// m, 0: never). Tried before [`deepen`](super::deepen).
     pub deepen_to_middle_m: f64,
+    /// Check the hand where the approach starts (`approach_m` back,
+    /// pre-shaped) against every other object's box (its seen extent in
+    /// its own frame, as the robot-bridge takes it), each hand box grown by
+    /// `pregrasp_box_margin_m`: the bridge refuses a grasp whose hand there
+    /// is inside a taller neighbour's box, though the points there are
+    /// free ([`hand_collision`](super::hand_collision)).
+    pub pregrasp_boxes: bool,
+    /// How much each hand box grows for that check (m; the bridge's
+    /// `ArmModel::margin_m`).
+    pub pregrasp_box_margin_m: f64,
 }
 
 impl Default for HandConfig {
@@ -119,6 +129,8 @@ impl Default for HandConfig {
             // Chosen on the referee's train pools
             // (docs/experiments/2026-12-02-towards-the-middle.md).
             deepen_to_middle_m: 0.04,
+            pregrasp_boxes: true,
+            pregrasp_box_margin_m: 0.01,
         }
     }
 }

@@ -31,12 +31,7 @@ pub(super) fn collides(
     points: &[[f32; 3]],
 ) -> bool {
     let identity = Isometry3::identity();
-    let (mut lo, mut hi) = (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN));
-    for p in points {
-        let v = Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
-        lo = lo.inf(&v);
-        hi = hi.sup(&v);
-    }
+    let (lo, hi) = bounds(points);
     let obstacle = Obstacle {
         world_from_object: &identity,
         extent_min_m: &lo,
@@ -76,10 +71,21 @@ pub(super) fn block(lo: [f64; 3], hi: [f64; 3]) -> Vec<[f32; 3]> {
 /// Local points with their box, framed by `world_from_object`.
 pub(super) type Framed = (Vec<[f32; 3]>, Vector3<f64>, Vector3<f64>);
 
-/// `points` (object frame) with the 2 m cube about the origin as their
-/// box: wide enough for any test scene.
+/// `points` (object frame) with their box.
 pub(super) fn framed(points: Vec<[f32; 3]>) -> Framed {
-    (points, Vector3::repeat(-1.0), Vector3::repeat(1.0))
+    let (lo, hi) = bounds(&points);
+    (points, lo, hi)
+}
+
+/// The box of `points` (their frame).
+pub(super) fn bounds(points: &[[f32; 3]]) -> (Vector3<f64>, Vector3<f64>) {
+    let (mut lo, mut hi) = (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN));
+    for p in points {
+        let v = Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+        lo = lo.inf(&v);
+        hi = hi.sup(&v);
+    }
+    (lo, hi)
 }
 
 pub(super) fn obstacle_of<'a>(

@@ -76,7 +76,8 @@ pub struct DetectedObject {
 pub struct ObjectRefusals {
     /// The hand would hit the table.
     pub table: usize,
-    /// The hand would hit another object.
+    /// The hand would hit another object's points, or, where the approach
+    /// starts, stand inside its box (`HandConfig::pregrasp_boxes`).
     pub neighbour: usize,
     /// The hand would hit the object's own points (no opening re-fit passed).
     pub own_points: usize,
