@@ -10,7 +10,9 @@
 //! pads that land on the object are a failed grasp as much as pads that
 //! land on its neighbour. Another object's points count between the pads
 //! too (the hand would close on it, or meet it with the palm on the way
-//! down). A refused grasp may get another chance (`repair`).
+//! down). Where the approach starts, the hand must also keep out of every
+//! other object's box (`HandConfig::pregrasp_boxes`), as the robot-bridge
+//! checks its pre-grasp. A refused grasp may get another chance (`repair`).
 //!
 //! What the camera never saw is not known to be free: an object cut by the
 //! image border looks narrower than it is, and a pad reaching past the
@@ -75,7 +77,8 @@ pub fn hand_out_of_view(
 }
 
 /// Whether the hand, closing to `width_m` at `world_from_grasp` after its
-/// approach, would hit the observed points of `obstacles` or the table.
+/// approach, would hit the observed points of `obstacles` or the table,
+/// or start its approach inside another object's box.
 /// `own` is the grasp's own object among `obstacles`: only its points may
 /// lie between the pads, where the hand ends or on the way in; another
 /// object's points there would be closed on, or met by the palm on the way
