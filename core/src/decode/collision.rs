@@ -159,40 +159,47 @@ pub fn hand_collision(
     obstacles
         .iter()
         .enumerate()
-        .position(|(i, o)| own != Some(i) && at_start.iter().any(|b| meets_box(world_from_grasp, b, o)))
+        .position(|(i, o)| own != Some(i) && meets_box(world_from_grasp, &at_start, o))
         .map(Collision::Object)
 }
 
-/// Whether `b` (grasp frame) overlaps `object`'s box (its seen extent, in
-/// its own frame): no separating axis among the two boxes' three axes each
-/// and the nine cross products between them.
-fn meets_box(world_from_grasp: &Isometry3<f64>, b: &GraspBox, object: &Obstacle<'_>) -> bool {
+/// Whether any of `boxes` (grasp frame) overlaps `object`'s box (its seen
+/// extent, in its own frame): no separating axis among the two boxes'
+/// three axes each and the nine cross products between them. A box whose
+/// bounding sphere misses the object's is skipped first.
+fn meets_box(world_from_grasp: &Isometry3<f64>, boxes: &[GraspBox], object: &Obstacle<'_>) -> bool {
     let object_from_grasp = object.world_from_object.inverse() * world_from_grasp;
     let rotation = object_from_grasp.rotation.to_rotation_matrix().into_inner();
     let grasp_axes = [0, 1, 2].map(|k| rotation.column(k).into_owned());
     let object_axes = [Vector3::x(), Vector3::y(), Vector3::z()];
     let half_object = (object.extent_max_m - object.extent_min_m) / 2.0;
-    let half_hand = (b.hi - b.lo) / 2.0;
-    let apart = object_from_grasp * Point3::from((b.lo + b.hi) / 2.0)
-        - Point3::from((object.extent_max_m + object.extent_min_m) / 2.0);
-    // Each box's half length along `axis` (any length), against the
-    // centres' distance along it.
-    let separates = |axis: Vector3<f64>| {
-        let spread = |axes: &[Vector3<f64>; 3], half: &Vector3<f64>| {
-            (0..3).map(|k| half[k] * axes[k].dot(&axis).abs()).sum::<f64>()
+    let centre_object = Point3::from((object.extent_max_m + object.extent_min_m) / 2.0);
+    boxes.iter().any(|b| {
+        let half_hand = (b.hi - b.lo) / 2.0;
+        let apart = object_from_grasp * Point3::from((b.lo + b.hi) / 2.0) - centre_object;
+        if apart.norm() > half_object.norm() + half_hand.norm() {
+            return false;
+        }
+        // Each box's half length along `axis` (any length), against the
+        // centres' distance along it.
+        let separates = |axis: Vector3<f64>| {
+            let spread = |axes: &[Vector3<f64>; 3], half: &Vector3<f64>| {
+                (0..3).map(|k| half[k] * axes[k].dot(&axis).abs()).sum::<f64>()
+            };
+            axis.norm_squared() > 1e-18
+                && apart.dot(&axis).abs()
+                    > spread(&object_axes, &half_object) + spread(&grasp_axes, &half_hand)
         };
-        axis.norm_squared() > 1e-18
-            && apart.dot(&axis).abs() > spread(&object_axes, &half_object) + spread(&grasp_axes, &half_hand)
-    };
-    let crossed = object_axes
-        .iter()
-        .flat_map(|a| grasp_axes.iter().map(move |g| a.cross(g)));
-    !object_axes
-        .iter()
-        .chain(&grasp_axes)
-        .copied()
-        .chain(crossed)
-        .any(separates)
+        let crossed = object_axes
+            .iter()
+            .flat_map(|a| grasp_axes.iter().map(move |g| a.cross(g)));
+        !object_axes
+            .iter()
+            .chain(&grasp_axes)
+            .copied()
+            .chain(crossed)
+            .any(separates)
+    })
 }
 
 /// `f` of each of `object`'s points inside `b`, in the grasp frame (f32);
@@ -460,11 +467,11 @@ mod tests {
         };
         // The turned box reaches 7.07 cm along x; its bounds 7.07 along y too.
         let at = |x: f64, y: f64| Isometry3::translation(x, y, 0.0);
-        assert!(meets_box(&at(0.075, 0.0), &unit, &object));
-        assert!(!meets_box(&at(0.085, 0.0), &unit, &object));
+        assert!(meets_box(&at(0.075, 0.0), &[unit], &object));
+        assert!(!meets_box(&at(0.085, 0.0), &[unit], &object));
         // Near the bounds' corner (6 cm, 6 cm) but outside the turned box.
-        assert!(!meets_box(&at(0.065, 0.065), &unit, &object));
-        assert!(meets_box(&at(0.03, 0.03), &unit, &object));
+        assert!(!meets_box(&at(0.065, 0.065), &[unit], &object));
+        assert!(meets_box(&at(0.03, 0.03), &[unit], &object));
         // The hand box turned 45 degrees about x reaches 1.41 cm up and
         // down: it meets the box's top (5 cm) from 6.41 cm up, not above.
         let tilted = |z: f64| {
@@ -473,8 +480,8 @@ mod tests {
                 UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_4),
             )
         };
-        assert!(meets_box(&tilted(0.063), &unit, &object));
-        assert!(!meets_box(&tilted(0.066), &unit, &object));
+        assert!(meets_box(&tilted(0.063), &[unit], &object));
+        assert!(!meets_box(&tilted(0.066), &[unit], &object));
     }
 
     #[test]
