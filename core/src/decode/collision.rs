@@ -385,23 +385,10 @@ mod tests {
         // from 7.5 cm out (the pre-shaped palm spans 7 cm each side).
         let mut wall = block([0.16, -0.05, 0.0], [0.17, 0.05, 0.30]);
         wall.extend(block([0.075, -0.05, 0.0], [0.17, 0.05, 0.005]));
-        let check = |hand: &HandConfig, neighbour: &[[f32; 3]]| {
-            let (own_lo, own_hi) = bounds(&flat);
-            let (lo, hi) = bounds(neighbour);
-            let objects = [
-                Obstacle {
-                    world_from_object: &identity,
-                    extent_min_m: &own_lo,
-                    extent_max_m: &own_hi,
-                    points: &flat,
-                },
-                Obstacle {
-                    world_from_object: &identity,
-                    extent_min_m: &lo,
-                    extent_max_m: &hi,
-                    points: neighbour,
-                },
-            ];
+        let own = framed(flat);
+        let check = |hand: &HandConfig, neighbour: Vec<[f32; 3]>| {
+            let neighbour = framed(neighbour);
+            let objects = [obstacle_of(&identity, &own), obstacle_of(&identity, &neighbour)];
             hand_collision(
                 &top_down(0.0, 0.0, 0.005),
                 0.06,
@@ -412,34 +399,29 @@ mod tests {
                 Some(0),
             )
         };
-        assert_eq!(check(&hand, &wall), Some(Collision::Object(1)));
+        assert_eq!(check(&hand, wall.clone()), Some(Collision::Object(1)));
         // The points alone: free.
         let points_only = HandConfig {
             pregrasp_boxes: false,
             ..hand.clone()
         };
-        assert_eq!(check(&points_only, &wall), None);
+        assert_eq!(check(&points_only, wall.clone()), None);
         // Without the margin the palm stops 5 mm short of the box.
         let bare = HandConfig {
             pregrasp_box_margin_m: 0.0,
             ..hand.clone()
         };
-        assert_eq!(check(&bare, &wall), None);
+        assert_eq!(check(&bare, wall.clone()), None);
         // A neighbour lower than where the approach starts is no obstacle.
         let mut low = block([0.16, -0.05, 0.0], [0.17, 0.05, 0.06]);
         low.extend(block([0.075, -0.05, 0.0], [0.17, 0.05, 0.005]));
-        assert_eq!(check(&hand, &low), None);
+        assert_eq!(check(&hand, low), None);
         // Nor is the grasp's own box: the same wall as the grasped object.
-        let (lo, hi) = bounds(&wall);
-        let alone = [Obstacle {
-            world_from_object: &identity,
-            extent_min_m: &lo,
-            extent_max_m: &hi,
-            points: &wall,
-        }];
+        let alone = framed(wall);
         let lone_grasp = top_down(0.0, 0.0, 0.005);
+        let objects = [obstacle_of(&identity, &alone)];
         assert_eq!(
-            hand_collision(&lone_grasp, 0.06, &gripper, &hand, &table, &alone, Some(0)),
+            hand_collision(&lone_grasp, 0.06, &gripper, &hand, &table, &objects, Some(0)),
             None
         );
     }

@@ -278,17 +278,22 @@ pub fn episode_first_frame(scenario: Scenario, seed: u64, catalog: &Catalog) -> 
     Ok((scene, frame))
 }
 
-/// A default planner with the crease split of `crease` ([`crease_setting`]'s
-/// text form), for comparing segmentations.
-pub fn planner_with_crease(crease: &str, contract: &ModelContract) -> Result<Planner> {
-    let config = PlannerConfig {
+/// The default planner's settings with the crease split of `crease`
+/// ([`crease_setting`]'s text form).
+pub fn config_with_crease(crease: &str) -> Result<PlannerConfig> {
+    Ok(PlannerConfig {
         cluster: ClusterConfig {
             crease: crease_setting(crease)?,
             ..ClusterConfig::default()
         },
         ..PlannerConfig::default()
-    };
-    Planner::new(config, contract.clone()).map_err(|e| Error::Invalid {
+    })
+}
+
+/// A default planner with the crease split of `crease` ([`crease_setting`]'s
+/// text form), for comparing segmentations.
+pub fn planner_with_crease(crease: &str, contract: &ModelContract) -> Result<Planner> {
+    Planner::new(config_with_crease(crease)?, contract.clone()).map_err(|e| Error::Invalid {
         field: "contract",
         reason: e.to_string(),
     })

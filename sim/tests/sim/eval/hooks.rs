@@ -19,8 +19,7 @@ fn hooked_episode(
 /// starts their boxes refuse most grasps (`HandConfig::pregrasp_boxes`:
 /// a pile frame of the test below offers 1 grasp instead of 4), and the
 /// tests of alternatives and judged grasps need several ranked per frame.
-fn points_only(config: PlannerConfig) -> PlannerConfig {
-    let mut config = config;
+fn points_only(mut config: PlannerConfig) -> PlannerConfig {
     config.hand.pregrasp_boxes = false;
     config
 }
@@ -176,13 +175,7 @@ fn alternatives_end_as_the_episode_would_with_them_first() {
     let l = contract.input_size_px;
     // This pile comes apart into several objects (several grasps ranked
     // below each tried one) with the crease split on.
-    let crease_on = PlannerConfig {
-        cluster: mvgrasp_core::ClusterConfig {
-            crease: Some(CreaseConfig::default()),
-            ..mvgrasp_core::ClusterConfig::default()
-        },
-        ..PlannerConfig::default()
-    };
+    let crease_on = mvgrasp_sim::eval::config_with_crease("on").unwrap();
     let planner = Planner::new(points_only(crease_on), contract.clone()).unwrap();
     let config = EpisodeConfig::default();
     let setting = Setting::parse("all:0.1").unwrap();
