@@ -579,6 +579,30 @@ class ObstaclesTest(unittest.TestCase):
         self.assertEqual(answers[True]["obstacles_cut"], ["obstacle 0"], answers[True])
         self.assertIsNone(answers[True]["grasp_index"], answers[True])
 
+    def test_an_object_boxed_with_the_basket_is_kept_beside_it(self):
+        """The planner's one box over the basket and an object dropped 20 cm
+        from the robot's base beside it (a train-large heap, 2026-12-07,
+        whose upper arm then touched that object on the way to every
+        pre-grasp), the arm parked and the planner asked with its body: the
+        bridge keeps the part beside the basket, cut back clear of the
+        basket and of the parked arm; a box over the basket alone stays the
+        cell's."""
+        c = cell.build([], [])
+        b = bridge.Bridge(bridge_binary(), gripper.tcp_in_flange(c))
+        boxes = [{"min": [0.112, -0.615, 0.0], "max": [0.659, -0.203, 0.214]},
+                 {"min": [0.33, -0.6, 0.0], "max": [0.57, -0.34, 0.2]}]
+        (w0, v0, z0), (w1, v1, _) = planner.WORKSPACE
+        scene = {"detected": [], "table_plane": {"normal": [0.0, 0.0, 1.0], "offset_m": 0.0},
+                 "workspace": {"min": [w0, v0, z0], "max": [w1, v1, 0.45]}, "obstacles": boxes,
+                 "robot_body_left_out": True}
+        try:
+            answer = b.plan([], scene, c.arm_q())
+        finally:
+            b.close()
+        self.assertEqual(answer["obstacles_cut"], ["obstacle 0"], answer)
+        self.assertEqual(answer["obstacles_left_out"],
+                         [{"obstacle": "obstacle 1", "why": "meets the cell's fixed obstacles"}], answer)
+
     def test_the_bridges_arm_covers_the_simulated_arms_links(self):
         """A 2 cm box at the centre of each of the simulated arm's link
         meshes (upper arm, forearm, wrists), the arm parked and reaching

@@ -29,7 +29,8 @@
 //!   robot's body), turned into obstacles exactly as `pick` turns a
 //!   planner's answer into them (`obstacles_left_out` in the answer: the
 //!   boxes taken for the cell; `obstacles_cut`: those against the arm
-//!   where it stands, kept cut back clear of it). A `movel` step carries its joint
+//!   where it stands or over the basket and beside it, kept cut back
+//!   clear of them). A `movel` step carries its joint
 //!   samples every centimetre (`path`), so the straight line is the one the
 //!   bridge checked. `refused` says, for each better-ranked grasp that was
 //!   skipped, why. The optional `released` (default 0) counts the objects
@@ -296,7 +297,7 @@ fn answer(arm: &Ur5e, config: &PickConfig, line: &str) -> Result<serde_json::Val
                 }
                 None => Vec::new(),
             };
-            let cut = seen_out.cut;
+            let cut: Vec<_> = seen_out.cut.into_iter().map(|(name, _)| name).collect();
             let left_out: Vec<_> = seen_out
                 .left_out
                 .into_iter()

@@ -367,8 +367,8 @@ fn pick(
     for (name, why) in &seen.left_out {
         println!("  {name}: {why}");
     }
-    for name in &seen.cut {
-        println!("  {name}: against the arm where it stands, kept cut back clear of it");
+    for (name, why) in &seen.cut {
+        println!("  {name}: {why}, kept cut back clear of it");
     }
     let failed = match files.failed_picks.map(read_if_present).transpose()?.flatten() {
         Some(text) => robot_bridge::pick::parse_failed_picks(&text)?,

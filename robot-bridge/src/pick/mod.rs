@@ -282,12 +282,18 @@ pub enum Step {
 pub struct SeenObstacles {
     /// Those taken for the cell itself, by name, and why.
     pub left_out: Vec<(String, &'static str)>,
-    /// Those kept cut back clear of the arm where it stands, by name.
-    pub cut: Vec<String>,
+    /// Those kept cut back, by name, and what they were cut clear of: the
+    /// arm where it stands ([`crate::collision::TOUCHES_ARM`]) or the
+    /// basket ([`crate::collision::MEETS_CELL`]).
+    pub cut: Vec<(String, &'static str)>,
 }
 
 /// The least a box cut back clear of the arm keeps across (m).
 const MIN_CUT_KEPT_M: f64 = 0.01;
+
+/// The least a box cut back clear of the basket keeps across (m): less is
+/// the basket's own walls seen a little off its model.
+const MIN_CELL_CUT_KEPT_M: f64 = 0.03;
 
 /// A feasible pick of one grasp.
 #[derive(Debug, Clone, PartialEq)]
@@ -309,6 +315,11 @@ impl PickConfig {
     /// lying against the arm: it is kept, cut back clear of the arm
     /// ([`crate::collision::cut_clear_of_arm`]), so that no move sweeps
     /// through the rest of it; left out only where no cut keeps 1 cm of it.
+    /// A box that meets the basket is kept as what lies beside it, cut back
+    /// from an upright face clear of the basket
+    /// ([`crate::collision::cut_clear_of_cell`]), where that keeps 3 cm
+    /// across and the rest is neither over the base nor at the arm: the
+    /// planner boxes an object against the basket together with it.
     pub fn add_seen_obstacles(
         &mut self,
         arm: &Ur5e,
@@ -326,6 +337,7 @@ impl PickConfig {
             current,
             crate::collision::BASE_COLUMN_RADIUS_M,
         );
+        let cell = self.obstacles.clone();
         let mut out = SeenObstacles::default();
         for ((o, object), why) in seen.iter().zip(verdicts) {
             let cut = match why {
@@ -337,18 +349,47 @@ impl PickConfig {
                     current,
                     MIN_CUT_KEPT_M,
                 ),
+                // The rest judged again: over the base, or at the arm
+                // when the body's points were not left out, it is the cell's.
+                Some(crate::collision::MEETS_CELL) => {
+                    crate::collision::cut_clear_of_cell(o, &cell, MIN_CELL_CUT_KEPT_M).and_then(|rest| {
+                        let verdict = crate::collision::foreign_obstacles(
+                            std::slice::from_ref(&rest),
+                            &cell,
+                            self.world_from_base,
+                            &self.arm_model,
+                            arm,
+                            current,
+                            crate::collision::BASE_COLUMN_RADIUS_M,
+                        );
+                        match verdict[..] {
+                            [None] => Some(rest),
+                            [Some(crate::collision::TOUCHES_ARM)] if body_left_out => {
+                                crate::collision::cut_clear_of_arm(
+                                    &rest,
+                                    self.world_from_base,
+                                    &self.arm_model,
+                                    arm,
+                                    current,
+                                    MIN_CUT_KEPT_M,
+                                )
+                            }
+                            _ => None,
+                        }
+                    })
+                }
                 _ => None,
             };
             let kept = match (why, cut) {
-                (_, Some(cut)) => {
-                    out.cut.push(o.name.clone());
+                (Some(why), Some(cut)) => {
+                    out.cut.push((o.name.clone(), why));
                     cut
                 }
                 (Some(why), None) => {
                     out.left_out.push((o.name.clone(), why));
                     continue;
                 }
-                (None, None) => o.clone(),
+                (None, _) => o.clone(),
             };
             match object {
                 Some(k) => self.object_parts.push((*k, kept)),
@@ -661,5 +702,34 @@ mod tests {
                 .to_string()
                 .contains("line 1")
         );
+    }
+
+    /// Of the planner's boxes outside the workspace: one over the basket
+    /// and an object beside it is kept as the part beside it (and said
+    /// cut); one over the basket alone is still taken for the cell.
+    #[test]
+    fn a_box_over_the_basket_and_beside_it_keeps_what_is_beside_it() {
+        let aabb = |index: usize, lo: [f64; 3], hi: [f64; 3]| {
+            crate::planner::outside_box(index, lo.into(), hi.into()).expect("a box")
+        };
+        // The basket as the referee's cell has it, filled to 0.25 m.
+        let mut config = PickConfig {
+            obstacles: vec![aabb(9, [0.30, -0.62, 0.0], [0.60, -0.32, 0.25])],
+            ..PickConfig::default()
+        };
+        let seen = [
+            (aabb(0, [0.11, -0.615, 0.0], [0.66, -0.20, 0.21]), None),
+            (aabb(1, [0.305, -0.615, 0.0], [0.595, -0.325, 0.1]), None),
+        ];
+        let out = config.add_seen_obstacles(&Ur5e::default(), &seen, &crate::ur5e::HOME, true);
+        assert_eq!(out.cut, [("obstacle 0".to_owned(), crate::collision::MEETS_CELL)]);
+        assert_eq!(
+            out.left_out,
+            [("obstacle 1".to_owned(), crate::collision::MEETS_CELL)]
+        );
+        assert_eq!(config.obstacles.len(), 2);
+        let rest = &config.obstacles[1];
+        let hi_x = rest.world_from_box.translation.x + rest.half_extents_m.x;
+        assert!(hi_x <= 0.30 && hi_x > 0.29, "{rest:?}");
     }
 }
