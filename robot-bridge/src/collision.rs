@@ -263,8 +263,7 @@ pub fn cut_clear_of_cell(seen: &BoxObstacle, cell: &[BoxObstacle], min_m: f64) -
     let fixed = but_the_table(cell);
     let upright =
         (0..3).filter(|&axis| (seen.world_from_box.rotation * Vector3::ith(axis, 1.0)).z.abs() < 0.5);
-    let axes: Vec<usize> = upright.collect();
-    cut_until(seen, axes, min_m, |o| !meets_any(o, &fixed))
+    cut_until(seen, upright, min_m, |o| !meets_any(o, &fixed))
 }
 
 /// `cell`'s obstacles other than the table, as parry tests them.

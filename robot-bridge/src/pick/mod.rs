@@ -328,58 +328,11 @@ impl PickConfig {
         body_left_out: bool,
     ) -> SeenObstacles {
         let boxes: Vec<BoxObstacle> = seen.iter().map(|(o, _)| o.clone()).collect();
-        let verdicts = crate::collision::foreign_obstacles(
-            &boxes,
-            &self.obstacles,
-            self.world_from_base,
-            &self.arm_model,
-            arm,
-            current,
-            crate::collision::BASE_COLUMN_RADIUS_M,
-        );
         let cell = self.obstacles.clone();
+        let verdicts = self.verdicts(arm, &boxes, &cell, current);
         let mut out = SeenObstacles::default();
         for ((o, object), why) in seen.iter().zip(verdicts) {
-            let cut = match why {
-                Some(crate::collision::TOUCHES_ARM) if body_left_out => crate::collision::cut_clear_of_arm(
-                    o,
-                    self.world_from_base,
-                    &self.arm_model,
-                    arm,
-                    current,
-                    MIN_CUT_KEPT_M,
-                ),
-                // The rest judged again: over the base, or at the arm
-                // when the body's points were not left out, it is the cell's.
-                Some(crate::collision::MEETS_CELL) => {
-                    crate::collision::cut_clear_of_cell(o, &cell, MIN_CELL_CUT_KEPT_M).and_then(|rest| {
-                        let verdict = crate::collision::foreign_obstacles(
-                            std::slice::from_ref(&rest),
-                            &cell,
-                            self.world_from_base,
-                            &self.arm_model,
-                            arm,
-                            current,
-                            crate::collision::BASE_COLUMN_RADIUS_M,
-                        );
-                        match verdict[..] {
-                            [None] => Some(rest),
-                            [Some(crate::collision::TOUCHES_ARM)] if body_left_out => {
-                                crate::collision::cut_clear_of_arm(
-                                    &rest,
-                                    self.world_from_base,
-                                    &self.arm_model,
-                                    arm,
-                                    current,
-                                    MIN_CUT_KEPT_M,
-                                )
-                            }
-                            _ => None,
-                        }
-                    })
-                }
-                _ => None,
-            };
+            let cut = why.and_then(|why| self.kept_cut(arm, o, why, &cell, current, body_left_out));
             let kept = match (why, cut) {
                 (Some(why), Some(cut)) => {
                     out.cut.push((o.name.clone(), why));
@@ -397,6 +350,61 @@ impl PickConfig {
             }
         }
         out
+    }
+
+    /// [`crate::collision::foreign_obstacles`] of `boxes` against `cell`,
+    /// the arm at `current`.
+    fn verdicts(
+        &self,
+        arm: &Ur5e,
+        boxes: &[BoxObstacle],
+        cell: &[BoxObstacle],
+        current: &Joints,
+    ) -> Vec<Option<&'static str>> {
+        crate::collision::foreign_obstacles(
+            boxes,
+            cell,
+            self.world_from_base,
+            &self.arm_model,
+            arm,
+            current,
+            crate::collision::BASE_COLUMN_RADIUS_M,
+        )
+    }
+
+    /// What [`Self::add_seen_obstacles`] keeps of `o`, a box taken for the
+    /// cell for `why`: cut back clear of the arm (with `body_left_out`) or
+    /// of the basket; `None` where it is left out. The rest of a box cut
+    /// clear of the basket is judged again like any box: over the base it
+    /// is left out, at the arm it is cut back clear of it in turn.
+    fn kept_cut(
+        &self,
+        arm: &Ur5e,
+        o: &BoxObstacle,
+        why: &str,
+        cell: &[BoxObstacle],
+        current: &Joints,
+        body_left_out: bool,
+    ) -> Option<BoxObstacle> {
+        match why {
+            crate::collision::TOUCHES_ARM if body_left_out => crate::collision::cut_clear_of_arm(
+                o,
+                self.world_from_base,
+                &self.arm_model,
+                arm,
+                current,
+                MIN_CUT_KEPT_M,
+            ),
+            crate::collision::MEETS_CELL => {
+                let rest = crate::collision::cut_clear_of_cell(o, cell, MIN_CELL_CUT_KEPT_M)?;
+                match self.verdicts(arm, std::slice::from_ref(&rest), cell, current)[..] {
+                    [None] => Some(rest),
+                    [Some(again)] => self.kept_cut(arm, &rest, again, cell, current, body_left_out),
+                    _ => None,
+                }
+            }
+            _ => None,
+        }
     }
 
     /// The robot's body at `q`, hand open, as the planner leaves its points
