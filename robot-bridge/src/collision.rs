@@ -759,9 +759,7 @@ mod tests {
     /// and one standing out of the basket's top is never cut from below.
     #[test]
     fn a_box_over_the_basket_and_its_neighbour_keeps_the_neighbour() {
-        let aabb = |index: usize, lo: [f64; 3], hi: [f64; 3]| {
-            crate::planner::outside_box(index, lo.into(), hi.into()).expect("a box")
-        };
+        use crate::planner::outside_box_of as aabb;
         let cell = [table(0.0), aabb(9, [0.30, -0.62, 0.0], [0.60, -0.32, 0.25])];
         let fixed = but_the_table(&cell);
         // The basket and an object 19 cm beside it, boxed as one (as the

@@ -268,6 +268,12 @@ pub(crate) fn outside_box(index: usize, min: Vector3<f64>, max: Vector3<f64>) ->
     })
 }
 
+/// [`outside_box`] from corner arrays, for tests; panics on a bad box.
+#[cfg(test)]
+pub(crate) fn outside_box_of(index: usize, min: [f64; 3], max: [f64; 3]) -> BoxObstacle {
+    outside_box(index, min.into(), max.into()).expect("a box")
+}
+
 /// `v` as a message.
 fn message(v: &Vector3<f64>) -> pb::Vector3 {
     pb::Vector3 {

@@ -717,9 +717,7 @@ mod tests {
     /// cut); one over the basket alone is still taken for the cell.
     #[test]
     fn a_box_over_the_basket_and_beside_it_keeps_what_is_beside_it() {
-        let aabb = |index: usize, lo: [f64; 3], hi: [f64; 3]| {
-            crate::planner::outside_box(index, lo.into(), hi.into()).expect("a box")
-        };
+        use crate::planner::outside_box_of as aabb;
         // The basket as the referee's cell has it, filled to 0.25 m.
         let mut config = PickConfig {
             obstacles: vec![aabb(9, [0.30, -0.62, 0.0], [0.60, -0.32, 0.25])],
