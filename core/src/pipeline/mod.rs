@@ -20,7 +20,7 @@ pub use plan::{
 pub use prepared::{Finished, Prepared};
 use prepared::{PreparedObject, Vetted, cascade_order};
 pub use vet::approach_of;
-use vet::{Vetting, vet};
+use vet::{Verdicts, Vetting};
 
 use std::time::{Duration, Instant};
 
@@ -276,6 +276,7 @@ impl Planner {
             untried,
             earlier: Vec::new(),
             decoded: Vec::new(),
+            verdicts: Verdicts::default(),
             options: options.clone(),
             timings,
         })
@@ -293,7 +294,7 @@ impl Planner {
             // views alone, and earlier rounds' views are already counted:
             // only this round's views are decoded to update the cover.
             let fresh = self.decode_round(&mut prepared, &maps);
-            let newly = self.objects_with_grasps(&prepared, fresh.clone());
+            let newly = self.objects_with_grasps(&mut prepared, fresh.clone());
             for (covered, newly) in prepared.covered.iter_mut().zip(newly) {
                 *covered |= newly;
             }
@@ -328,14 +329,16 @@ impl Planner {
 
     /// Which objects have at least one grasp that clears `min_quality` and
     /// the hand check in the maps so far.
-    fn objects_with_grasps(&self, prepared: &Prepared, candidates: Vec<Grasp>) -> Vec<bool> {
+    fn objects_with_grasps(&self, prepared: &mut Prepared, candidates: Vec<Grasp>) -> Vec<bool> {
         let options = PlanOptions {
             max_grasps: usize::MAX,
             keep_views: false,
             ..prepared.options.clone()
         };
         // One grasp per object answers the question: the check stops there.
-        let vetted = self.vet_and_rank(prepared, candidates, &options, 1);
+        let mut verdicts = std::mem::take(&mut prepared.verdicts);
+        let vetted = self.vet_and_rank(prepared, candidates, &options, 1, &mut verdicts);
+        prepared.verdicts = verdicts;
         let mut covered = vec![false; prepared.objects.len()];
         for g in &vetted.ranked.grasps {
             if let Some(i) = prepared.objects.iter().position(|o| o.object.id == g.object_id) {
@@ -379,13 +382,15 @@ impl Planner {
 
     /// The candidates (decoded, [`Self::decode_round`]) through the approach
     /// cone, the hand check and the ranking: the grasps, and what the check
-    /// refused, deferred or turned.
+    /// refused, deferred or turned. `verdicts`: the hand check's answers
+    /// earlier in this call, kept for the next.
     fn vet_and_rank(
         &self,
         prepared: &Prepared,
         mut grasps: Vec<Grasp>,
         options: &PlanOptions,
         max_per_object: usize,
+        verdicts: &mut Verdicts,
     ) -> Vetted {
         let (objects, table, view) = (&prepared.objects, &prepared.table, &prepared.view);
         // Approaches and positions the robot cannot take: dropped before
@@ -446,7 +451,9 @@ impl Planner {
             score,
             |g| {
                 let own = index_of(g.object_id);
-                vet(g, own, &vetting, &mut per_object, &mut turned_square)
+                let checked = verdicts.check(g, own, &vetting);
+                checked.count(own, &mut per_object, &mut turned_square);
+                checked.verdict
             },
         );
         Vetted {
@@ -470,6 +477,7 @@ impl Planner {
     /// `maps` are the current round's, for the debug views.
     fn rank_decoded(&self, mut prepared: Prepared, maps: &GraspMaps, start: Instant) -> Result<Plan> {
         let candidates = std::mem::take(&mut prepared.decoded);
+        let mut verdicts = std::mem::take(&mut prepared.verdicts);
         let Vetted {
             ranked,
             turned_square,
@@ -479,6 +487,7 @@ impl Planner {
             candidates,
             &prepared.options,
             self.config.max_grasps_per_object,
+            &mut verdicts,
         );
         let mut debug_maps = std::collections::HashMap::new();
         if prepared.options.keep_views {

@@ -3,6 +3,7 @@
 
 use super::options::PlanOptions;
 use super::plan::{DetectedObject, ObjectRefusals, Plan, RankedLast, StageTimings};
+use super::vet::Verdicts;
 use std::time::Duration;
 
 use crate::decode::{Grasp, Ranked};
@@ -37,6 +38,8 @@ pub struct Prepared {
     pub(super) decoded: Vec<Grasp>,
     /// Objects with a grasp that clears the hand check in an earlier round.
     pub(super) covered: Vec<bool>,
+    /// The hand check's answers so far, by grasp.
+    pub(super) verdicts: Verdicts,
     pub(super) options: PlanOptions,
     pub(super) timings: StageTimings,
 }

@@ -3,6 +3,7 @@
 use super::plan::{ObjectRefusals, RankedLast};
 
 use nalgebra::{Isometry3, Vector3};
+use rustc_hash::FxHashMap;
 
 use crate::decode::{
     Collision, Grasp, HandConfig, Obstacle, Repairs, Verdict, contact_slopes, deepen, deepen_to_middle,
@@ -11,6 +12,7 @@ use crate::decode::{
 use crate::gripper::Gripper;
 use crate::segment::TablePlane;
 use crate::sensor::FieldOfView;
+use crate::view::ViewAxis;
 
 /// What the hand check of one answer's grasps looks at ([`vet`]).
 pub(super) struct Vetting<'a> {
@@ -23,31 +25,78 @@ pub(super) struct Vetting<'a> {
     pub(super) table_clearance_m: f64,
 }
 
+/// What the hand check said of one grasp: the verdict, and what it counts
+/// (the cause of a refusal, a grasp squared to its surfaces).
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Checked {
+    pub(super) verdict: Verdict<RankedLast>,
+    refused_for: Option<Collision>,
+    squared: bool,
+}
+
+impl Checked {
+    /// Counts a refusal's cause in `per_object[own]` and a squared grasp in
+    /// `turned_square`.
+    pub(super) fn count(
+        &self,
+        own: Option<usize>,
+        per_object: &mut [ObjectRefusals],
+        turned_square: &mut usize,
+    ) {
+        if let (Some(c), Some(mine)) = (self.refused_for, own.and_then(|i| per_object.get_mut(i))) {
+            match c {
+                Collision::Table => mine.table += 1,
+                Collision::Object(i) if Some(i) == own => mine.own_points += 1,
+                Collision::Object(_) => mine.neighbour += 1,
+            }
+        }
+        *turned_square += usize::from(self.squared);
+    }
+}
+
+/// The hand check's answers so far in one call, by grasp. The view
+/// cascade's cover check and the final ranking meet the same candidates,
+/// and the check depends on nothing else that changes between them (the
+/// objects, the table and the gripper are the call's): each candidate is
+/// checked once.
+#[derive(Default)]
+pub(super) struct Verdicts(FxHashMap<WhereFrom, Vec<(Grasp, Checked)>>);
+
+/// Where a candidate came from: its object, view and pixel.
+type WhereFrom = (u32, ViewAxis, [u32; 2]);
+
+impl Verdicts {
+    /// [`check`] of `g`, or what it said of an equal grasp before.
+    pub(super) fn check(&mut self, g: Grasp, own: Option<usize>, v: &Vetting<'_>) -> Checked {
+        let seen = self.0.entry((g.object_id, g.view, g.pixel)).or_default();
+        if let Some((_, checked)) = seen.iter().find(|(earlier, _)| *earlier == g) {
+            return checked.clone();
+        }
+        let checked = check(g.clone(), own, v);
+        seen.push((g, checked.clone()));
+        checked
+    }
+
+    /// How many grasps were checked.
+    #[cfg(test)]
+    fn len(&self) -> usize {
+        self.0.values().map(Vec::len).sum()
+    }
+}
+
 /// One grasp through the hand check, in rank order: accepted as planned or
 /// repaired (opening re-fitted, squared, deepened), deferred (turned away
-/// from what it would hit, or pads out of view), or refused, its cause
-/// counted in `per_object[own]`. `own`: the grasp's object among
-/// `v.obstacles`.
-pub(super) fn vet(
-    g: Grasp,
-    own: Option<usize>,
-    v: &Vetting<'_>,
-    per_object: &mut [ObjectRefusals],
-    turned_square: &mut usize,
-) -> Verdict<RankedLast> {
+/// from what it would hit, or pads out of view), or refused, with its
+/// cause. `own`: the grasp's object among `v.obstacles`.
+pub(super) fn check(g: Grasp, own: Option<usize>, v: &Vetting<'_>) -> Checked {
     let hand = v.hand;
     let hit = |pose: &Isometry3<f64>, width: f64| {
         hand_collision(pose, width, v.gripper, hand, v.table, v.obstacles, own)
     };
-    let mut refuse = |c: Collision| {
-        let mut unknown = ObjectRefusals::default();
-        let mine = own.map_or(&mut unknown, |i| &mut per_object[i]);
-        match c {
-            Collision::Table => mine.table += 1,
-            Collision::Object(i) if Some(i) == own => mine.own_points += 1,
-            Collision::Object(_) => mine.neighbour += 1,
-        }
-        Verdict::Refuse
+    let refuse = |c: Collision| Checked {
+        verdict: Verdict::Refuse,
+        refused_for: Some(c),
+        squared: false,
     };
     // The check as planned: passed (no new pose), or what the
     // hand hits. Pads on its own object: open to what was seen
@@ -111,18 +160,16 @@ pub(super) fn vet(
     let turned = turn
         .map(|t| g.world_from_grasp * nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), t))
         .filter(|pose| hit(pose, g.width_m).is_none());
+    let squared = turned.is_some();
     let g = match turned {
-        Some(world_from_grasp) => {
-            *turned_square += 1;
-            Grasp {
-                world_from_grasp,
-                repairs: Repairs {
-                    squared: true,
-                    ..g.repairs
-                },
-                ..g
-            }
-        }
+        Some(world_from_grasp) => Grasp {
+            world_from_grasp,
+            repairs: Repairs {
+                squared: true,
+                ..g.repairs
+            },
+            ..g
+        },
         None => g,
     };
     // Deeper where the hand and the table allow: fingertips
@@ -174,16 +221,111 @@ pub(super) fn vet(
             && hand_out_of_view(&g.world_from_grasp, g.width_m, v.gripper, hand, fov)
     });
     g.repairs.out_of_view = unseen;
-    if unseen {
+    let verdict = if unseen {
         Verdict::Defer(g, RankedLast::OutOfView)
     } else if turned_away {
         Verdict::Defer(g, RankedLast::TurnedAway)
     } else {
         Verdict::Accept(g)
+    };
+    Checked {
+        verdict,
+        refused_for: None,
+        squared,
     }
 }
 
 /// World-frame approach direction of a grasp (its +z axis).
 pub fn approach_of(grasp: &Grasp) -> Vector3<f64> {
     grasp.world_from_grasp.rotation * Vector3::z()
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Translation3, UnitQuaternion};
+
+    use super::*;
+    use crate::decode::DecodeConfig;
+
+    /// Straight down onto `(x, y, z)`, closing along world x.
+    fn top_down(pixel: u32, x: f64, z: f64) -> Grasp {
+        let rotation = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+        Grasp {
+            world_from_grasp: Isometry3::from_parts(Translation3::new(x, 0.0, z), rotation),
+            width_m: 0.08,
+            quality: 0.9,
+            object_id: 1,
+            view: ViewAxis::Top,
+            pixel: [pixel, 0],
+            angle_rad: 0.0,
+            repairs: Default::default(),
+        }
+    }
+
+    #[test]
+    fn each_grasp_is_checked_once_and_its_causes_counted_each_time() {
+        // A 4 cm cube of points (5 mm grid) on a table at z = 0.
+        let steps = 0..=8u8;
+        let points: Vec<[f32; 3]> = steps
+            .clone()
+            .flat_map(|i| steps.clone().flat_map(move |j| (0..=8u8).map(move |k| [i, j, k])))
+            .map(|[i, j, k]| {
+                [
+                    f32::from(i) * 0.005 - 0.02,
+                    f32::from(j) * 0.005 - 0.02,
+                    f32::from(k) * 0.005,
+                ]
+            })
+            .collect();
+        let (lo, hi) = (Vector3::new(-0.02, -0.02, 0.0), Vector3::new(0.02, 0.02, 0.04));
+        let identity = Isometry3::identity();
+        let obstacles = [Obstacle {
+            world_from_object: &identity,
+            extent_min_m: &lo,
+            extent_max_m: &hi,
+            points: &points,
+        }];
+        let table = TablePlane {
+            normal: Vector3::z(),
+            offset_m: 0.0,
+            support: 1.0,
+        };
+        let (hand, gripper) = (HandConfig::default(), Gripper::default());
+        let v = Vetting {
+            hand: &hand,
+            gripper: &gripper,
+            table: &table,
+            obstacles: &obstacles,
+            view: None,
+            table_clearance_m: DecodeConfig::default().table_clearance_m,
+        };
+        let across = top_down(0, 0.0, 0.02);
+        let under_the_table = top_down(1, 0.3, -0.05);
+        let mut verdicts = Verdicts::default();
+        let (mut per_object, mut squared) = ([ObjectRefusals::default()], 0);
+        for _ in 0..2 {
+            for g in [&across, &under_the_table] {
+                let checked = verdicts.check(g.clone(), Some(0), &v);
+                assert_eq!(checked, check(g.clone(), Some(0), &v));
+                checked.count(Some(0), &mut per_object, &mut squared);
+            }
+        }
+        assert_eq!(verdicts.len(), 2, "each grasp checked once");
+        assert!(matches!(
+            verdicts.check(across.clone(), Some(0), &v).verdict,
+            Verdict::Accept(_)
+        ));
+        assert_eq!(
+            verdicts.check(under_the_table, Some(0), &v).verdict,
+            Verdict::Refuse
+        );
+        assert_eq!(per_object[0].table, 2, "counted each time it was asked");
+        // Another grasp at the same pixel is checked on its own.
+        let deeper = Grasp {
+            width_m: 0.09,
+            ..across
+        };
+        verdicts.check(deeper, Some(0), &v);
+        assert_eq!(verdicts.len(), 3);
+    }
 }
