@@ -23,6 +23,10 @@ use crate::{
 /// HTTP/2 flow-control window per stream (bytes).
 const HTTP2_WINDOW_BYTES: u32 = 8 << 20;
 
+/// Largest HTTP/2 frame the server takes (bytes): a depth frame arrives in a
+/// few frames instead of dozens of 16 KiB ones.
+const HTTP2_MAX_FRAME_BYTES: u32 = 1 << 20;
+
 /// A started server: its addresses and the handle that stops it.
 #[derive(Debug)]
 pub struct RunningServer {
@@ -153,11 +157,13 @@ pub async fn start_with_net(settings: Settings, net: LoadedNet) -> Result<Runnin
                 .await;
             let _ = drain_tx.send(());
         };
-        // Frames are 0.5-4 MB: windows that hold a whole frame, and no Nagle
-        // delay on the small frames (window updates, responses).
+        // Frames are 0.5-4 MB: windows that hold a whole frame, HTTP/2
+        // frames of up to 1 MiB to carry it, and no Nagle delay on the small
+        // frames (window updates, responses).
         let serve = builder
             .initial_stream_window_size(HTTP2_WINDOW_BYTES)
             .initial_connection_window_size(2 * HTTP2_WINDOW_BYTES)
+            .max_frame_size(HTTP2_MAX_FRAME_BYTES)
             .layer(tower::util::MapResponseLayer::new(rewrite_limit_status))
             .layer(admission)
             .add_service(health_service)

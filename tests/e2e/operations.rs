@@ -341,3 +341,45 @@ async fn calls_over_the_in_flight_limit_are_refused_at_once() {
     assert!(client.clone().plan(frame()).await.is_ok());
     server.shutdown().await.unwrap();
 }
+
+/// The HTTP/2 settings the gRPC port announces: a depth frame (0.5-4 MB)
+/// fits the flow-control windows whole, and arrives in frames of up to
+/// 1 MiB instead of dozens of 16 KiB ones (about 1 ms of a one-client call
+/// on the 2-core VM, BENCHMARKS.md).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_grpc_port_takes_a_frame_in_large_http2_frames() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let (server, _client) = start(settings(BackendKind::Baseline)).await;
+    let mut stream = tokio::net::TcpStream::connect(server.addr).await.unwrap();
+    // The client preface and an empty SETTINGS frame.
+    let mut hello = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n".to_vec();
+    hello.extend_from_slice(&[0, 0, 0, 0x4, 0, 0, 0, 0, 0]);
+    stream.write_all(&hello).await.unwrap();
+    // The server's first frame is its SETTINGS: 9-byte header, then
+    // 6-byte entries (16-bit id, 32-bit value).
+    let mut header = [0u8; 9];
+    stream.read_exact(&mut header).await.unwrap();
+    assert_eq!(header[3], 0x4, "frame type: SETTINGS");
+    let length = u32::from_be_bytes([0, header[0], header[1], header[2]]) as usize;
+    let mut body = vec![0u8; length];
+    stream.read_exact(&mut body).await.unwrap();
+    let announced: std::collections::HashMap<u16, u32> = body
+        .chunks_exact(6)
+        .map(|e| {
+            (
+                u16::from_be_bytes([e[0], e[1]]),
+                u32::from_be_bytes([e[2], e[3], e[4], e[5]]),
+            )
+        })
+        .collect();
+    assert_eq!(
+        announced.get(&0x5),
+        Some(&(1 << 20)),
+        "MAX_FRAME_SIZE: {announced:?}"
+    );
+    assert_eq!(
+        announced.get(&0x4),
+        Some(&(8 << 20)),
+        "INITIAL_WINDOW_SIZE: {announced:?}"
+    );
+}
