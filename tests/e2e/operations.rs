@@ -344,8 +344,7 @@ async fn calls_over_the_in_flight_limit_are_refused_at_once() {
 
 /// The HTTP/2 settings the gRPC port announces: a depth frame (0.5-4 MB)
 /// fits the flow-control windows whole, and arrives in frames of up to
-/// 1 MiB instead of dozens of 16 KiB ones (about 1 ms of a one-client call
-/// on the 2-core VM, BENCHMARKS.md).
+/// 1 MiB instead of dozens of 16 KiB ones.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_grpc_port_takes_a_frame_in_large_http2_frames() {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};

@@ -14,7 +14,7 @@ use crate::segment::TablePlane;
 use crate::sensor::FieldOfView;
 use crate::view::ViewAxis;
 
-/// What the hand check of one answer's grasps looks at ([`vet`]).
+/// What the hand check of one answer's grasps looks at ([`check`]).
 pub(super) struct Vetting<'a> {
     pub(super) hand: &'a HandConfig,
     pub(super) gripper: &'a Gripper,
@@ -265,18 +265,15 @@ mod tests {
     #[test]
     fn each_grasp_is_checked_once_and_its_causes_counted_each_time() {
         // A 4 cm cube of points (5 mm grid) on a table at z = 0.
-        let steps = 0..=8u8;
-        let points: Vec<[f32; 3]> = steps
-            .clone()
-            .flat_map(|i| steps.clone().flat_map(move |j| (0..=8u8).map(move |k| [i, j, k])))
-            .map(|[i, j, k]| {
-                [
-                    f32::from(i) * 0.005 - 0.02,
-                    f32::from(j) * 0.005 - 0.02,
-                    f32::from(k) * 0.005,
-                ]
-            })
-            .collect();
+        let mut points: Vec<[f32; 3]> = Vec::new();
+        for i in 0..=8u8 {
+            for j in 0..=8u8 {
+                for k in 0..=8u8 {
+                    let at = |n: u8| f32::from(n) * 0.005;
+                    points.push([at(i) - 0.02, at(j) - 0.02, at(k)]);
+                }
+            }
+        }
         let (lo, hi) = (Vector3::new(-0.02, -0.02, 0.0), Vector3::new(0.02, 0.02, 0.04));
         let identity = Isometry3::identity();
         let obstacles = [Obstacle {
