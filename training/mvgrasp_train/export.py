@@ -8,7 +8,9 @@ hold none); then every transposed convolution is rewritten in its sub-pixel
 form, a 3x3 convolution and a DepthToSpace (`model.subpixel`: the same
 function, measured faster on CPU; `--no-subpixel` keeps ConvTranspose),
 except one whose kernel is its stride (`lite`'s last), kept as it is.
-The batch axis is dynamic, opset 17, and the metadata carries
+Then the 1x1 heads are moved before the last layer's pixel shuffle
+(`phase_tail`: the same maps, the full-resolution tail's work done at 24 x
+24). The batch axis is dynamic, opset 17, and the metadata carries
 the contract `mvgrasp-core` reads (core/src/infer/contract.rs): input size,
 metres per pixel, width scale, normalisation, output order, model and data
 versions. onnxruntime's output must equal PyTorch's within 1e-4, else the
@@ -27,7 +29,7 @@ import onnx
 import onnxruntime
 import torch
 
-from . import dataset, runs
+from . import dataset, phase_tail, runs
 from .model import GraspNet, fold_batchnorm, subpixel
 
 TOLERANCE = 1e-4
@@ -68,6 +70,8 @@ def export(model, size, path, metadata, sub_pixel=True):
         entry = graph.metadata_props.add()
         entry.key, entry.value = key, value
     graph.producer_name = "mvgrasp_train"
+    if sub_pixel:
+        graph = phase_tail.rewrite(graph)
     onnx.checker.check_model(graph)
     onnx.save(graph, path)
     return sorted(ops)

@@ -210,9 +210,6 @@ class ComposeTest(unittest.TestCase):
             self.c.compose(self.where, other)
 
 
-if __name__ == "__main__":
-    unittest.main()
-
 
 @unittest.skipIf(MISSING, REASON)
 class QuantizeTest(unittest.TestCase):
@@ -266,3 +263,152 @@ class QuantizeTest(unittest.TestCase):
         self.assertEqual(set(gaps), {"quality", "cos2phi", "sin2phi", "width"})
         for name, gap in gaps.items():
             self.assertLess(gap["mean"], 0.05, name)
+
+
+def legacy_tail(kind, seed=0):
+    """A small network (views [n, 1, 6, 6], maps [n, 4, 18, 18]) ending as
+    exported networks did before `phase_tail`: a DepthToSpace of block size
+    1, then `kind`'s last layer, a ReLU, the 1x1 heads and the sigmoid on
+    the quality channel. `subpixel`: a 3x3 convolution and a DepthToSpace
+    (3, CRD); `transposed`: a transposed convolution of kernel 3, stride 3;
+    `qdq-subpixel` and `qdq-transposed`: the same with int8 weights
+    (per output channel) and the layer's output quantized per tensor."""
+    from onnx import TensorProto, helper, numpy_helper
+
+    rng = np.random.default_rng(seed)
+    f32 = lambda *shape: rng.normal(0.0, 0.5, shape).astype(np.float32)  # noqa: E731
+    inits, nodes = [], []
+
+    def init(name, array):
+        inits.append(numpy_helper.from_array(array, name))
+        return name
+
+    def dequantized(name, array, axis):
+        scale = (np.abs(array).max(axis=tuple(i for i in range(array.ndim) if i != axis)) / 127 + 1e-6)
+        scale = scale.astype(np.float32)
+        shape = [1] * array.ndim
+        shape[axis] = -1
+        q = np.round(array / scale.reshape(shape)).astype(np.int8)
+        nodes.append(helper.make_node("DequantizeLinear", [init(name + "_q", q), init(name + "_scale", scale),
+                                                            init(name + "_zp", np.zeros(scale.shape, np.int8))],
+                                      [name], axis=axis))
+        return name
+
+    nodes += [helper.make_node("Conv", ["views", init("w0", f32(4, 1, 3, 3)), init("b0", f32(4))], ["c0"],
+                               pads=[1, 1, 1, 1]),
+              helper.make_node("DepthToSpace", ["c0"], ["s0"], blocksize=1, mode="CRD"),
+              helper.make_node("Relu", ["s0"], ["r0"])]
+    quantized = kind.startswith("qdq-")
+    if kind.endswith("subpixel"):
+        w, b = f32(2 * 9, 4, 3, 3), f32(2 * 9)
+        w_name = dequantized("w1", w, 0) if quantized else init("w1", w)
+        nodes.append(helper.make_node("Conv", ["r0", w_name, init("b1", b)], ["c1"], pads=[1, 1, 1, 1]))
+    else:
+        w, b = f32(4, 2, 3, 3), f32(2)
+        w_name = dequantized("w1", w, 1) if quantized else init("w1", w)
+        nodes.append(helper.make_node("ConvTranspose", ["r0", w_name, init("b1", b)], ["c1"],
+                                      kernel_shape=[3, 3], strides=[3, 3]))
+    last = "c1"
+    if quantized:
+        nodes += [helper.make_node("QuantizeLinear", ["c1", init("a_scale", np.float32(0.05)),
+                                                      init("a_zp", np.uint8(128))], ["c1_q"]),
+                  helper.make_node("DequantizeLinear", ["c1_q", "a_scale", "a_zp"], ["c1_dq"])]
+        last = "c1_dq"
+    if kind.endswith("subpixel"):
+        nodes.append(helper.make_node("DepthToSpace", [last], ["s1"], blocksize=3, mode="CRD"))
+        last = "s1"
+    nodes += [helper.make_node("Relu", [last], ["r1"]),
+              helper.make_node("Conv", ["r1", init("hw", f32(4, 2, 1, 1)), init("hb", f32(4))], ["h"]),
+              helper.make_node("Slice", ["h", init("s_lo", np.array([0], np.int64)),
+                                         init("s_mid", np.array([1], np.int64)), init("s_ax", np.array([1], np.int64))],
+                               ["q"]),
+              helper.make_node("Sigmoid", ["q"], ["qs"]),
+              helper.make_node("Slice", ["h", "s_mid", init("s_hi", np.array([4], np.int64)), "s_ax"], ["rest"]),
+              helper.make_node("Concat", ["qs", "rest"], ["maps"], axis=1)]
+    graph = helper.make_graph(nodes, kind, [helper.make_tensor_value_info("views", TensorProto.FLOAT, ["n", 1, 6, 6])],
+                              [helper.make_tensor_value_info("maps", TensorProto.FLOAT, ["n", 4, 18, 18])], inits)
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    model.ir_version = 8
+    onnx.checker.check_model(model)
+    return model
+
+
+@unittest.skipIf(MISSING, REASON)
+class PhaseTailTest(unittest.TestCase):
+    """`phase_tail`: the heads before the last pixel shuffle, the same maps."""
+
+    @classmethod
+    def setUpClass(cls):
+        from mvgrasp_train import phase_tail
+
+        cls.pt = phase_tail
+        cls.views = np.random.default_rng(5).uniform(0.0, 1.0, (3, 1, 6, 6)).astype(np.float32)
+
+    def test_every_kind_of_tail_gives_the_same_maps(self):
+        for kind in ("subpixel", "transposed", "qdq-subpixel", "qdq-transposed"):
+            with self.subTest(kind=kind):
+                before = legacy_tail(kind)
+                after = self.pt.rewrite(before)
+                self.assertLessEqual(self.pt.check(before, after, self.views), self.pt.TOLERANCE)
+                onnx.shape_inference.infer_shapes(after, strict_mode=True)
+                ops = [n.op_type for n in after.graph.node]
+                self.assertNotIn("ConvTranspose", ops)
+                shuffles = [n for n in after.graph.node if n.op_type == "DepthToSpace"]
+                self.assertEqual(len(shuffles), 1, "one shuffle, at the end")
+                grouped = [n for n in after.graph.node if n.op_type == "Conv"][-1]
+                self.assertEqual(self.pt.attributes(grouped)["group"], 9)
+                self.assertEqual(shuffles[0].input[0], grouped.output[0])
+
+    def test_the_maps_differ_without_the_channel_order(self):
+        """The check can fail: the rewrite with the heads' phases left in CRD order."""
+        before = legacy_tail("subpixel")
+        after = self.pt.rewrite(before)
+        for node in after.graph.node:
+            if node.op_type == "DepthToSpace":
+                del node.attribute[:]
+                node.attribute.extend([onnx.helper.make_attribute("blocksize", 3),
+                                       onnx.helper.make_attribute("mode", "CRD")])
+        self.assertGreater(self.pt.check(before, after, self.views), 1e-2)
+
+    def test_refuses_what_it_cannot_move(self):
+        twice = self.pt.rewrite(legacy_tail("subpixel"))
+        with self.assertRaisesRegex(ValueError, "not 1x1 heads"):
+            self.pt.rewrite(twice)
+        dcr = legacy_tail("subpixel")
+        for node in dcr.graph.node:
+            if node.op_type == "DepthToSpace" and self.pt.attributes(node)["blocksize"] == 3:
+                node.attribute[[a.name for a in node.attribute].index("mode")].s = b"DCR"
+        with self.assertRaisesRegex(ValueError, "not CRD"):
+            self.pt.rewrite(dcr)
+        shared = legacy_tail("subpixel")
+        shared.graph.node.append(onnx.helper.make_node("Identity", ["c1"], ["c1_too"]))
+        shared.graph.output.append(onnx.helper.make_tensor_value_info("c1_too", onnx.TensorProto.FLOAT, None))
+        with self.assertRaisesRegex(ValueError, "read by more than"):
+            self.pt.rewrite(shared)
+
+    def test_shipped_files_have_their_heads_before_the_shuffle(self):
+        """Every file in models/manifest.toml is in this form (the e2e test
+        `every_shipped_model_matches_the_manifest_and_its_golden_vectors`
+        checks their maps against the golden vectors written before)."""
+        import tomllib
+
+        folder = os.path.dirname(MODEL)
+        with open(os.path.join(folder, "manifest.toml"), "rb") as f:
+            manifest = tomllib.load(f)
+        for name, entry in manifest["models"].items():
+            with self.subTest(model=name):
+                model = onnx.load(os.path.join(folder, entry["file"]))
+                shuffles = [n for n in model.graph.node if n.op_type == "DepthToSpace"]
+                self.assertTrue(all(self.pt.attributes(n)["blocksize"] > 1 for n in shuffles))
+                last = shuffles[-1]
+                self.assertEqual(self.pt.attributes(last)["mode"], b"DCR")
+                grouped = [n for n in model.graph.node if n.op_type == "Conv"][-1]
+                self.assertEqual(last.input[0], grouped.output[0])
+                with self.assertRaisesRegex(ValueError, "not 1x1 heads"):
+                    self.pt.rewrite(model)
+                # No tensor shape recorded in the file contradicts the graph (onnxruntime warns of those).
+                onnx.shape_inference.infer_shapes(model, strict_mode=True)
+
+
+if __name__ == "__main__":
+    unittest.main()
