@@ -63,9 +63,11 @@ pub struct ModelSettings {
     pub spin_wait: bool,
     /// cuDNN's convolution algorithm search (`device = cuda` only).
     pub cuda_conv_search: ConvSearch,
-    /// Sessions of the file, each running its own batches: one gathers the
-    /// next batch while another runs (on a GPU, while one batch's maps are
-    /// copied back and handed out, the next computes).
+    /// Sessions of the file, each running its own batches on its own
+    /// thread: one gathers the next batch while another runs (on a GPU,
+    /// while one batch's maps are copied back and handed out, the next
+    /// computes; on two CPU cores, one session's thread alone left a core
+    /// idle under load).
     pub sessions: usize,
 }
 
@@ -80,7 +82,7 @@ impl Default for ModelSettings {
             lone_call_threads: 2,
             spin_wait: true,
             cuda_conv_search: ConvSearch::Exhaustive,
-            sessions: 1,
+            sessions: 2,
         }
     }
 }
@@ -771,14 +773,14 @@ mod tests {
 
     #[test]
     fn sessions_are_read_overridden_and_checked() {
-        assert_eq!(Settings::default().model.sessions, 1);
+        assert_eq!(Settings::default().model.sessions, 2);
         let mut s = Settings::from_toml("[model]\nsessions = 3\n").unwrap();
         assert_eq!(s.model.sessions, 3);
         s.apply(&Overrides {
-            sessions: Some(2),
+            sessions: Some(1),
             ..Default::default()
         });
-        assert_eq!(s.model.sessions, 2);
+        assert_eq!(s.model.sessions, 1);
         s.validate().unwrap();
         s.model.sessions = 0;
         let err = s.validate().unwrap_err().to_string();
