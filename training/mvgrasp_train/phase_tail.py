@@ -210,32 +210,31 @@ def _as_pointwise(conv, producer, inits):
     # Output channel p * C + c, p = ky * b + kx, takes w[:, c, ky, kx].
     pointwise = w.transpose(2, 3, 1, 0).reshape(phases * channels, cin, 1, 1)
     _set(init, pointwise)
-    init.dims[:] = pointwise.shape
     if dq is not None:
         axis = attributes(dq).get("axis", 1)
-        params = [numpy_helper.to_array(inits[p]) for p in dq.input[1:]]
-        if any(v.size > 1 for v in params) and axis != 1:
+        if axis != 1 and any(numpy_helper.to_array(inits[p]).size > 1 for p in dq.input[1:]):
             raise ValueError(f"{dq.name}: per-channel on axis {axis}, not the transposed convolution's output axis")
-        for p, v in zip(dq.input[1:], params):
-            if v.size > 1:
-                _set(inits[p], np.tile(v, phases))
+        _tile_per_channel(dq, phases, inits)
         for attr in dq.attribute:
             if attr.name == "axis":
                 attr.i = 0
     if len(conv.input) > 2:
         b_init, b_dq = _tensor(conv.input[2], producer, inits)
         _set(b_init, np.tile(numpy_helper.to_array(b_init), phases))
-        b_init.dims[:] = [phases * channels]
         if b_dq is not None:
-            for p in b_dq.input[1:]:
-                v = numpy_helper.to_array(inits[p])
-                if v.size > 1:
-                    _set(inits[p], np.tile(v, phases))
-                    inits[p].dims[:] = [phases * channels]
+            _tile_per_channel(b_dq, phases, inits)
     conv.op_type = "Conv"
     del conv.attribute[:]
     conv.attribute.extend([helper.make_attribute("kernel_shape", [1, 1])])
     return block, channels
+
+
+def _tile_per_channel(dq, phases, inits):
+    """Repeats a DequantizeLinear's per-channel scale and zero point once per phase."""
+    for name in dq.input[1:]:
+        values = numpy_helper.to_array(inits[name])
+        if values.size > 1:
+            _set(inits[name], np.tile(values, phases))
 
 
 def _drop_unused_initializers(graph):
