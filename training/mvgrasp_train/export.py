@@ -74,7 +74,7 @@ def export(model, size, path, metadata, sub_pixel=True):
         graph = phase_tail.rewrite(graph)
     onnx.checker.check_model(graph)
     onnx.save(graph, path)
-    return sorted(ops)
+    return sorted({n.op_type for n in graph.graph.node})
 
 
 def compare(model, path, views):

@@ -29,10 +29,10 @@ import sys
 
 import numpy as np
 import onnx
-import onnxruntime
 from onnx import helper, numpy_helper
 
-TOLERANCE = 1e-5
+from .flip_wrap import TOLERANCE, probe_views, session
+
 # Nodes that act on each value alone, with one parameter for the whole tensor.
 ELEMENTWISE = ("Relu", "QuantizeLinear", "DequantizeLinear")
 
@@ -244,25 +244,13 @@ def _drop_unused_initializers(graph):
     graph.initializer.extend(kept)
 
 
-def session(model):
-    options = onnxruntime.SessionOptions()
-    options.intra_op_num_threads = 1
-    options.log_severity_level = 3
-    return onnxruntime.InferenceSession(model.SerializeToString(), options, providers=["CPUExecutionProvider"])
-
-
 def check(before, after, views):
     """Largest |maps(after) - maps(before)| over `views` (float32 [n, 1, L, L])."""
-    a = session(before).run(["maps"], {"views": views})[0]
-    b = session(after).run(["maps"], {"views": views})[0]
+    a = session(before.SerializeToString()).run(["maps"], {"views": views})[0]
+    b = session(after.SerializeToString()).run(["maps"], {"views": views})[0]
     if a.shape != b.shape:
         raise ValueError(f"maps of shape {b.shape}, not {a.shape}")
     return float(np.abs(a - b).max())
-
-
-def random_views(model, count=8, seed=0):
-    size = next(int(p.value) for p in model.metadata_props if p.key == "mvgrasp.input_size_px")
-    return np.random.default_rng(seed).uniform(0.0, 1.0, (count, 1, size, size)).astype(np.float32)
 
 
 def main(argv=None):
@@ -275,7 +263,7 @@ def main(argv=None):
         after = rewrite(before)
     except ValueError as e:
         sys.exit(f"{args.src}: {e}")
-    worst = check(before, after, random_views(before))
+    worst = check(before, after, probe_views(before, 8))
     print(json.dumps({"src": args.src, "dst": args.dst, "max_abs_diff": worst, "tolerance": TOLERANCE,
                       "nodes": [len(before.graph.node), len(after.graph.node)]}))
     if worst > TOLERANCE:
