@@ -264,6 +264,88 @@ class QuantizeTest(unittest.TestCase):
         for name, gap in gaps.items():
             self.assertLess(gap["mean"], 0.05, name)
 
+    def test_best_pixel_of_a_file_against_itself_and_its_int8_copy(self):
+        views = np.ascontiguousarray(self.views)
+        same = self.q.best_pixel(MODEL, MODEL, views)
+        self.assertEqual(same, {"within_2px": 1.0, "quality_lost_mean": 0.0, "quality_lost_p95": 0.0})
+        int8 = self.q.best_pixel(MODEL, self.out, views)
+        self.assertTrue(0.0 < int8["within_2px"] <= 1.0, int8)
+        self.assertTrue(0.0 <= int8["quality_lost_mean"] < 1.0, int8)
+        # Another network of the same contract picks other pixels, and the
+        # float file rates them lower than its own best.
+        other = self.q.best_pixel(MODEL, LEVEL, views)
+        self.assertLess(other["within_2px"], 1.0, other)
+        self.assertGreater(other["quality_lost_mean"], 0.0, other)
+
+    def test_relu_before_shuffle_same_maps_and_each_shuffle_after_its_relu(self):
+        base = onnx.load(MODEL)
+        moved = self.q.relu_before_shuffle(base)
+        before = [n.op_type for n in base.graph.node]
+        after = [n.op_type for n in moved.graph.node]
+        self.assertEqual(sorted(before), sorted(after))
+        pairs = lambda ops, a, b: sum(x == a and y == b for x, y in zip(ops, ops[1:]))  # noqa: E731
+        self.assertGreaterEqual(pairs(before, "DepthToSpace", "Relu"), 2)  # the decoder's two 2x shuffles
+        self.assertEqual(pairs(after, "DepthToSpace", "Relu"), 0)
+        self.assertEqual(pairs(after, "Relu", "DepthToSpace"), pairs(before, "DepthToSpace", "Relu"))
+        maps = {}
+        for name, model in (("base", base), ("moved", moved)):
+            run = onnxruntime.InferenceSession(model.SerializeToString(), providers=["CPUExecutionProvider"])
+            maps[name] = run.run(None, {"views": np.ascontiguousarray(self.views)})[0]
+        np.testing.assert_array_equal(maps["base"], maps["moved"])
+
+    def heads_input_ranges(self, model):
+        heads = [n for n in model.graph.node if n.op_type == "Conv"][-1]
+        probe = onnx.ModelProto.FromString(model.SerializeToString())
+        probe.graph.output.append(onnx.helper.make_tensor_value_info(heads.input[0], onnx.TensorProto.FLOAT, None))
+        run = onnxruntime.InferenceSession(probe.SerializeToString(), providers=["CPUExecutionProvider"])
+        maps, features = run.run(["maps", heads.input[0]], {"views": np.ascontiguousarray(self.views)})
+        return maps, features.max(axis=(0, 2, 3))
+
+    def test_equalized_heads_input_same_maps_and_one_range(self):
+        base = onnx.load(MODEL)
+        even = self.q.equalize_heads_input(base, np.ascontiguousarray(self.views))
+        maps, before = self.heads_input_ranges(base)
+        even_maps, after = self.heads_input_ranges(even)
+        self.assertLess(float(np.abs(maps - even_maps).max()), 1e-5)
+        self.assertGreater(before.max() / before[before > 0].min(), 2.0)  # unequal to begin with
+        lifted = before >= before.max() / 100  # the others are lifted 100-fold at most
+        self.assertGreater(int(lifted.sum()), 0)
+        np.testing.assert_allclose(after[lifted], before.max(), rtol=1e-4)
+        np.testing.assert_allclose(after[~lifted], before[~lifted] * 100, rtol=1e-4)
+
+    def test_equalize_leaves_heads_that_read_a_shuffle(self):
+        model = legacy_tail("subpixel")  # Conv -> DepthToSpace -> ReLU -> heads
+        views = np.random.default_rng(1).normal(0.0, 1.0, (4, 1, 6, 6)).astype(np.float32)
+        self.assertEqual(self.q.equalize_heads_input(model, views).SerializeToString(), model.SerializeToString())
+
+    def test_a_shuffle_read_twice_is_left_alone(self):
+        from onnx import TensorProto, helper
+
+        graph = helper.make_graph(
+            [helper.make_node("DepthToSpace", ["x"], ["s"], blocksize=2),
+             helper.make_node("Relu", ["s"], ["r"]),
+             helper.make_node("Add", ["s", "r"], ["y"])],
+            "twice", [helper.make_tensor_value_info("x", TensorProto.FLOAT, [1, 4, 2, 2])],
+            [helper.make_tensor_value_info("y", TensorProto.FLOAT, [1, 1, 4, 4])])
+        model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+        model.ir_version = 8
+        moved = self.q.relu_before_shuffle(model)
+        self.assertEqual([n.op_type for n in moved.graph.node], ["DepthToSpace", "Relu", "Add"])
+
+    def test_what_feeds_a_shuffle_is_quantized_from_zero(self):
+        """The ReLU moved before each shuffle gives the convolution's output a
+        range from zero (zero point 0), not one that spends steps on negatives."""
+        model = onnx.load(self.out)
+        producer = {o: n for n in model.graph.node for o in n.output}
+        inits = {t.name: onnx.numpy_helper.to_array(t) for t in model.graph.initializer}
+        float_tail = set(self.q.head_and_after(model))
+        shuffles = [n for n in model.graph.node if n.op_type == "DepthToSpace" and n.name not in float_tail]
+        self.assertEqual(len(shuffles), 2)  # the decoder's two 2x shuffles; the last one is after the heads
+        for shuffle in shuffles:
+            dq = producer[shuffle.input[0]]
+            self.assertEqual(dq.op_type, "DequantizeLinear", shuffle.name)
+            self.assertEqual(int(inits[dq.input[2]]), 0, shuffle.name)
+
 
 def legacy_tail(kind, seed=0):
     """A small network (views [n, 1, 6, 6], maps [n, 4, 18, 18]) ending as
