@@ -289,14 +289,19 @@ impl Worker {
         let mut lone = alone
             .then(|| self.lone.lock().unwrap_or_else(PoisonError::into_inner))
             .filter(|held| held.is_some());
-        let result = match lone.as_mut().and_then(|held| held.as_mut()) {
+        let started = Instant::now();
+        let (result, session) = match lone.as_mut().and_then(|held| held.as_mut()) {
             Some(net) => {
                 self.metrics.lone_network_calls.inc();
-                run(net.as_mut())
+                (run(net.as_mut()), "lone")
             }
-            None => run(self.net.as_mut()),
+            None => (run(self.net.as_mut()), "shared"),
         };
         drop(lone);
+        self.metrics
+            .network_seconds
+            .with_label_values(&[session])
+            .observe(started.elapsed().as_secs_f64());
         self.release(total);
         let per_view = 4 * size_px * size_px;
         let mut offset = 0;
@@ -437,11 +442,19 @@ mod tests {
         assert_eq!(*lone_calls.lock().unwrap(), [3]);
         assert!(busy_calls.lock().unwrap().is_empty());
         assert_eq!(metrics.lone_network_calls.get(), 1);
+        let timed = |session: &str| {
+            metrics
+                .network_seconds
+                .with_label_values(&[session])
+                .get_sample_count()
+        };
+        assert_eq!((timed("lone"), timed("shared")), (1, 0));
         // Another call in flight (in its CPU stages, say): the lone call's
         // batch leaves it the other cores.
         metrics.in_flight.set(2);
         batcher.infer(views(2, 0.0), None).await.unwrap();
         assert_eq!(*busy_calls.lock().unwrap(), [2]);
+        assert_eq!((timed("lone"), timed("shared")), (1, 1));
         // Requests sharing a call are never alone.
         metrics.in_flight.set(1);
         let preparing = batcher.preparing();

@@ -30,6 +30,10 @@ pub struct Metrics {
     /// Network calls run on the lone session (the only call in flight,
     /// `model.lone_call_threads`).
     pub lone_network_calls: IntCounter,
+    /// Time a batch spends in the network (views in, the run, maps out), by
+    /// session (`lone` or `shared`), in s: the stage `inference` of a call
+    /// is this plus its wait in the queue and the hand-overs.
+    pub network_seconds: HistogramVec,
     /// Views waiting for the network.
     pub queued_views: IntGauge,
     /// Calls being served.
@@ -71,6 +75,9 @@ pub struct Metrics {
 
 /// The `cause` label values of `mvgrasp_grasp_candidates_refused_total`.
 pub const REFUSAL_CAUSES: [&str; 7] = mvgrasp_core::ObjectRefusals::CAUSES;
+
+/// The `session` label values of `mvgrasp_network_duration_seconds`.
+pub const NETWORK_SESSIONS: [&str; 2] = ["lone", "shared"];
 
 /// The `reason` label values of `mvgrasp_dropped_views_total`.
 pub const DROP_REASONS: [&str; 3] = ["queue_full", "caller_gone", "deadline"];
@@ -191,9 +198,16 @@ impl Metrics {
                 "Network calls run on the lone session (the only call in flight)",
             )
             .map_err(metric_error)?,
+            network_seconds: histogram(
+                "network_duration_seconds",
+                "Time a batch spends in the network, by session",
+                &stage_buckets,
+                &["session"],
+            )
+            .map_err(metric_error)?,
             registry,
         };
-        let collectors: [Box<dyn prometheus::core::Collector>; 22] = [
+        let collectors: [Box<dyn prometheus::core::Collector>; 23] = [
             Box::new(m.requests.clone()),
             Box::new(m.request_seconds.clone()),
             Box::new(m.stage_seconds.clone()),
@@ -216,6 +230,7 @@ impl Metrics {
             Box::new(m.model_info.clone()),
             Box::new(m.unauthenticated.clone()),
             Box::new(m.lone_network_calls.clone()),
+            Box::new(m.network_seconds.clone()),
         ];
         for c in collectors {
             m.registry.register(c).map_err(metric_error)?;
@@ -227,6 +242,9 @@ impl Metrics {
         }
         for reason in DROP_REASONS {
             m.dropped.with_label_values(&[reason]);
+        }
+        for session in NETWORK_SESSIONS {
+            m.network_seconds.with_label_values(&[session]);
         }
         for method in ["PlanGrasps", "StreamGrasps", "GetModelInfo"] {
             m.requests.with_label_values(&[method, "Ok"]);

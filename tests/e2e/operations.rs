@@ -119,6 +119,17 @@ async fn health_reflection_and_metrics() {
     assert!(metrics.contains("mvgrasp_grasps_turned_square_total "));
     assert!(metrics.contains("mvgrasp_grasps_turned_away_total "));
     assert!(metrics.contains("mvgrasp_lone_network_calls_total "));
+    // Every network call timed, on one session or the other.
+    assert_eq!(
+        sample(
+            &metrics,
+            "mvgrasp_network_duration_seconds_count{session=\"lone\"}"
+        ) + sample(
+            &metrics,
+            "mvgrasp_network_duration_seconds_count{session=\"shared\"}"
+        ),
+        sample(&metrics, "mvgrasp_batch_views_count")
+    );
     // One view per object, and the next ones of objects the view cascade sent on.
     assert!(inferred_views >= 18);
     assert_eq!(sample(&metrics, "mvgrasp_batch_views_sum"), inferred_views as f64);
