@@ -24,11 +24,11 @@ import tempfile
 
 import numpy as np
 import onnx
-import onnxruntime
 from onnx import numpy_helper
 from onnxruntime import quantization
 
 from . import dataset
+from .flip_wrap import session
 
 
 CALIBRATION = {"percentile": quantization.CalibrationMethod.Percentile,
@@ -121,8 +121,7 @@ def equalize_heads_input(model, views, widest=100.0):
         return model
     probe = onnx.ModelProto.FromString(model.SerializeToString())
     probe.graph.output.append(onnx.helper.make_tensor_value_info(heads.input[0], onnx.TensorProto.FLOAT, None))
-    session = onnxruntime.InferenceSession(probe.SerializeToString(), providers=["CPUExecutionProvider"])
-    features = session.run([heads.input[0]], {"views": views})[0]
+    features = session(probe.SerializeToString()).run([heads.input[0]], {"views": views})[0]
     ranges = features.max(axis=(0, 2, 3))
     factor = np.minimum(ranges.max() / np.maximum(ranges, 1e-12), widest).astype(np.float32)
 
@@ -176,31 +175,24 @@ def quantize(src, dst, calibration, fmt="qdq", per_channel=True, method="percent
 
 
 def _maps(path, views):
-    options = onnxruntime.SessionOptions()
-    options.intra_op_num_threads = 1
-    session = onnxruntime.InferenceSession(path, options, providers=["CPUExecutionProvider"])
-    return session.run(None, {"views": views})[0], session.get_modelmeta().custom_metadata_map
+    run = session(path)
+    return run.run(None, {"views": views})[0], run.get_modelmeta().custom_metadata_map
 
 
-def differences(float_path, int8_path, views):
-    """Per output channel, the max and mean |int8 - float| over `views`."""
+def _both(float_path, int8_path, views):
+    """Both files' maps for `views` (each file run once) and the names of their channels."""
     a, meta = _maps(float_path, views)
     b, _ = _maps(int8_path, views)
-    names = meta["mvgrasp.outputs"].split(",")
+    return a, b, meta["mvgrasp.outputs"].split(",")
+
+
+def _differences(a, b, names):
     gap = np.abs(a - b)
     return {name: {"max": float(gap[:, k].max()), "mean": float(gap[:, k].mean())} for k, name in enumerate(names)}
 
 
-def best_pixel(float_path, int8_path, views):
-    """Where each file puts a view's best quality pixel, the planner's first pick.
-
-    `within_2px`: the share of `views` whose int8 best pixel lies within 2
-    pixels of the float file's; `quality_lost_mean` / `_p95`: the float
-    file's quality at the int8 file's best pixel, below its own best.
-    """
-    a, meta = _maps(float_path, views)
-    b, _ = _maps(int8_path, views)
-    q = meta["mvgrasp.outputs"].split(",").index("quality")
+def _best_pixel(a, b, names):
+    q = names.index("quality")
     n, side = a.shape[0], a.shape[-1]
     fa, fb = a[:, q].reshape(n, -1), b[:, q].reshape(n, -1)
     pa, pb = fa.argmax(1), fb.argmax(1)
@@ -210,15 +202,34 @@ def best_pixel(float_path, int8_path, views):
             "quality_lost_p95": float(np.quantile(lost, 0.95))}
 
 
+def differences(float_path, int8_path, views):
+    """Per output channel, the max and mean |int8 - float| over `views`."""
+    return _differences(*_both(float_path, int8_path, views))
+
+
+def best_pixel(float_path, int8_path, views):
+    """Where each file puts a view's best quality pixel, the planner's first pick.
+
+    `within_2px`: the share of `views` whose int8 best pixel lies within 2
+    pixels of the float file's; `quality_lost_mean` / `_p95`: the float
+    file's quality at the int8 file's best pixel, below its own best.
+    """
+    return _best_pixel(*_both(float_path, int8_path, views))
+
+
+def measure(float_path, int8_path, views):
+    """`differences` and `best_pixel` from one run of each file over `views`."""
+    maps = _both(float_path, int8_path, views)
+    return {"difference_on_held_out": _differences(*maps), "best_pixel": _best_pixel(*maps)}
+
+
 def write_golden(path, views, folder):
     """`views` and `path`'s maps for them (onnxruntime, one thread) as `folder`/input.npy, output.npy."""
-    options = onnxruntime.SessionOptions()
-    options.intra_op_num_threads = 1
-    session = onnxruntime.InferenceSession(path, options, providers=["CPUExecutionProvider"])
+    maps, meta = _maps(path, views)
     os.makedirs(folder, exist_ok=True)
     np.save(os.path.join(folder, "input.npy"), views)
-    np.save(os.path.join(folder, "output.npy"), session.run(None, {"views": views})[0])
-    version = session.get_modelmeta().custom_metadata_map["mvgrasp.model_version"]
+    np.save(os.path.join(folder, "output.npy"), maps)
+    version = meta["mvgrasp.model_version"]
     with open(os.path.join(folder, "README.md"), "w") as f:
         f.write(f"# Golden vectors of `{os.path.basename(path)}` ({version})\n\n"
                 "`input.npy`: two held-out views `[2, 1, L, L]`; `output.npy`: onnxruntime's maps for them "
@@ -252,8 +263,7 @@ def main(argv=None):
     held_out = sample_views(ds, eval_idx, args.check_views, args.seed + 1)
     if args.measure:
         print(json.dumps({"measured": args.out, "held_out_views": len(held_out),
-                          "difference_on_held_out": differences(args.onnx, args.out, held_out),
-                          "best_pixel": best_pixel(args.onnx, args.out, held_out)}))
+                          **measure(args.onnx, args.out, held_out)}))
         return
     quantize(args.onnx, args.out, sample_views(ds, train_idx, args.views, args.seed), args.format, args.per_channel,
              args.calibration, args.equalize)
@@ -262,8 +272,7 @@ def main(argv=None):
     print(json.dumps({"out": args.out, "format": args.format, "per_channel": args.per_channel,
                       "calibration": args.calibration, "equalize": args.equalize,
                       "calibration_views": min(args.views, len(train_idx)),
-                      "best_pixel": best_pixel(args.onnx, args.out, held_out),
-                      "difference_on_held_out": differences(args.onnx, args.out, held_out)}))
+                      **measure(args.onnx, args.out, held_out)}))
 
 
 if __name__ == "__main__":
