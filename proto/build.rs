@@ -15,6 +15,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         descriptors.encode_to_vec(),
     )?;
     tonic_prost_build::configure()
+        // A frame's or cloud's bytes are shared, not copied: decoded as a
+        // view of the received message, cloned by reference count.
+        .bytes(".mvgrasp.v1.DepthImage.data")
+        .bytes(".mvgrasp.v1.PointCloud.xyz")
         .build_client(true)
         .build_server(true)
         .compile_fds(descriptors)?;

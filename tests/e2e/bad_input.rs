@@ -23,7 +23,7 @@ fn depth(r: &mut pb::PlanGraspsRequest) -> &mut pb::DepthImage {
 
 fn cloud(xyz: Vec<u8>, frame: i32) -> Option<pb::plan_grasps_request::Sensor> {
     Some(pb::plan_grasps_request::Sensor::Cloud(pb::PointCloud {
-        xyz,
+        xyz: xyz.into(),
         frame,
     }))
 }
@@ -154,7 +154,8 @@ fn cases() -> Vec<(&'static str, Code, &'static str, Edit)> {
             Code::InvalidArgument,
             "depth.data",
             Box::new(|r| {
-                depth(r).data.iter_mut().for_each(|b| *b = 0);
+                let d = depth(r);
+                d.data = vec![0; d.data.len()].into();
             }),
         ),
         (
@@ -384,7 +385,7 @@ fn cases() -> Vec<(&'static str, Code, &'static str, Edit)> {
             Code::ResourceExhausted,
             "too large",
             Box::new(|r| {
-                depth(r).data = vec![1; 3 << 20];
+                depth(r).data = vec![1; 3 << 20].into();
             }),
         ),
     ]
@@ -429,7 +430,7 @@ async fn every_bad_field_is_named_and_the_server_keeps_serving() {
     assert!(answers.next().await.is_none());
     // An oversized frame in a stream is RESOURCE_EXHAUSTED too.
     let mut huge = good.clone();
-    depth(&mut huge).data = vec![1; 3 << 20];
+    depth(&mut huge).data = vec![1; 3 << 20].into();
     let mut answers = client
         .stream(futures_util::stream::iter(vec![huge]))
         .await
@@ -466,7 +467,7 @@ fn edges() -> Vec<(&'static str, Edit)> {
             Box::new(|r| {
                 let d = depth(r);
                 (d.width, d.height) = (1, 1);
-                d.data = 800u16.to_le_bytes().to_vec();
+                d.data = 800u16.to_le_bytes().to_vec().into();
             }),
         ),
         (
@@ -474,7 +475,7 @@ fn edges() -> Vec<(&'static str, Edit)> {
             Box::new(|r| {
                 let d = depth(r);
                 (d.width, d.height) = (1, 1);
-                d.data = vec![0, 0];
+                d.data = vec![0, 0].into();
             }),
         ),
         (
@@ -486,7 +487,10 @@ fn edges() -> Vec<(&'static str, Edit)> {
         ),
         (
             "every pixel at 65.535 m",
-            Box::new(|r| depth(r).data.iter_mut().for_each(|b| *b = 0xff)),
+            Box::new(|r| {
+                let d = depth(r);
+                d.data = vec![0xff; d.data.len()].into();
+            }),
         ),
         (
             "float32 depth of NaN, inf, negative",
@@ -497,7 +501,7 @@ fn edges() -> Vec<(&'static str, Edit)> {
                     .map(|i| [f32::NAN, f32::INFINITY, -1.0, 0.0][i % 4])
                     .collect();
                 d.encoding = pb::DepthEncoding::Float32M as i32;
-                d.data = f32s(&values);
+                d.data = f32s(&values).into();
             }),
         ),
         (

@@ -408,7 +408,7 @@ async fn stream_answers_in_order_and_clouds_equal_depth() {
     let cloud = client
         .plan(pb::PlanGraspsRequest {
             sensor: Some(pb::plan_grasps_request::Sensor::Cloud(pb::PointCloud {
-                xyz,
+                xyz: xyz.into(),
                 frame: pb::CloudFrame::World as i32,
             })),
             ..requests[0].clone()

@@ -6,7 +6,11 @@ use std::{
 };
 
 use mvgrasp_core::{Error as CoreError, GraspMaps, GraspNet, ModelContract, ViewBatch};
-use ort::{environment::Environment, session::Session, value::TensorRef};
+use ort::{
+    environment::Environment,
+    session::{Session, builder::GraphOptimizationLevel},
+    value::TensorRef,
+};
 
 use crate::{
     error::{Error, Result},
@@ -83,6 +87,12 @@ impl OnnxNet {
             .map_err(|e| startup("intra threads", &e))?
             .with_inter_threads(1)
             .map_err(|e| startup("inter threads", &e))?
+            // Every rewrite, the NCHWc layout and the int8 file's QDQ fusion
+            // included: ONNX Runtime's own default, named so that a default
+            // that moves does not move the server (the fastest level for
+            // both shipped files: docs/experiments/2026-12-08-what-is-left-on-two-cores.md).
+            .with_optimization_level(GraphOptimizationLevel::All)
+            .map_err(|e| startup("graph optimisation level", &e))?
             .with_config_entry(
                 "session.intra_op.allow_spinning",
                 if settings.spin_wait { "1" } else { "0" },
