@@ -10,7 +10,11 @@
 # (the script adds every lib folder of the `nvidia` Python packages, if present).
 #
 #   ORT_GPU_DIR=/tmp/ortgpu OUT=/tmp/out SERVER=target/release/mvgrasp-server \
-#     CLIENT=target/release/mvgrasp [RUNS=FILE] [BENCH_ARGS="..."] bash scripts/gpu-service-bench.sh [SECONDS]
+#     CLIENT=target/release/mvgrasp [RUNS=FILE] [BENCH_ARGS="..."] [CONNECTIONS=each|N] \
+#     bash scripts/gpu-service-bench.sh [SECONDS]
+#
+# CONNECTIONS: the connections the clients take turns over, `each` (one per
+# client, as a fleet's robots) or a count (default 1: all share one).
 #
 # Each setting: a fresh server (its CUDA warm-up line goes to stdout), then
 # `mvgrasp bench --json` per client count (appended to $OUT/bench.jsonl,
@@ -30,6 +34,9 @@ export LD_LIBRARY_PATH="$ORT_GPU_DIR${LIBS:+:$LIBS}${LD_LIBRARY_PATH:+:$LD_LIBRA
 ORT=$ORT_GPU_DIR/libonnxruntime.so.1.31.1
 # BENCH_ARGS: more `mvgrasp bench` request flags, e.g. "--approach-cone 0 0 -1 60" (the robot-bridge's)
 read -r -a extra <<<"${BENCH_ARGS:-}"
+connections_for() { # clients -> connections
+    if [[ "${CONNECTIONS:-1}" == each ]]; then echo "$1"; else echo "${CONNECTIONS:-1}"; fi
+}
 SCENE=(--depth samples/table6/depth.png --camera samples/table6/camera.json "${extra[@]}")
 echo "model $MODEL; $(nproc) cores; $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null)"
 port=50600
@@ -52,13 +59,14 @@ run() { # label device max_batch_views conv_search sessions clients...
     done
     sed 's/\x1b\[[0-9;]*m//g' "$OUT/server-$label.log" | grep -oE "(CUDA|WARN|ERROR).*" | head -3
     for clients in "$@"; do
-        local report before client
+        local report before client connections
+        connections=$(connections_for "$clients")
         before=$(cpu_s "$pid")
         # The client's CPU seconds (bash's `time`: user + system) beside the server's.
         client=$( { TIMEFORMAT='%U %S'; time "$C" --server http://127.0.0.1:$port bench "${SCENE[@]}" --warmup 20 \
-            --json --concurrency "$clients" --duration-s "$seconds" >"$OUT/report.json"; } 2>&1 | awk '{ print $1 + $2 }')
+            --json --concurrency "$clients" --connections "$connections" --duration-s "$seconds" >"$OUT/report.json"; } 2>&1 | awk '{ print $1 + $2 }')
         report=$(cat "$OUT/report.json")
-        echo "{\"label\": \"$label\", \"clients\": $clients, \"server_cpu_s\": $(awk -v a="$(cpu_s "$pid")" -v b="$before" 'BEGIN { print a - b }'), \"client_cpu_s\": $client, \"report\": $report}" | tee -a "$OUT/bench.jsonl"
+        echo "{\"label\": \"$label\", \"clients\": $clients, \"connections\": $connections, \"server_cpu_s\": $(awk -v a="$(cpu_s "$pid")" -v b="$before" 'BEGIN { print a - b }'), \"client_cpu_s\": $client, \"report\": $report}" | tee -a "$OUT/bench.jsonl"
     done
     rm -f "$OUT/report.json"
     python3 -c "import urllib.request as u; print(u.urlopen('http://127.0.0.1:$((port + 1))/metrics').read().decode())" \

@@ -1,5 +1,6 @@
 //! The load generator behind `mvgrasp bench`: N concurrent callers send the
-//! same frame for a duration or a count, optionally paced to a total rate.
+//! same frame for a duration or a count, optionally paced to a total rate,
+//! over one connection or several (a fleet's robots each have their own).
 
 use std::{
     sync::{
@@ -93,24 +94,33 @@ fn code_of(e: &crate::Error) -> String {
     }
 }
 
-/// Runs the benchmark; `progress` (if any) ticks once per measured call.
+/// Runs the benchmark, caller `i` calling through `connections[i %
+/// connections.len()]` (with none, nothing is called); `progress` (if any)
+/// ticks once per measured call.
 pub async fn run(
-    client: &PlannerClient,
+    connections: &[PlannerClient],
     request: &pb::PlanGraspsRequest,
     config: &BenchConfig,
     progress: Option<ProgressBar>,
 ) -> Result<BenchReport> {
-    let mut warm = client.clone();
-    for _ in 0..config.warmup {
-        // Unmeasured: a warm-up call that fails (a deadline shorter than a
-        // plan, say) fails again, counted, in the measured part.
-        let _ = warm.plan(request.clone()).await;
+    for connection in connections {
+        let mut warm = connection.clone();
+        for _ in 0..config.warmup {
+            // Unmeasured: a warm-up call that fails (a deadline shorter than a
+            // plan, say) fails again, counted, in the measured part.
+            let _ = warm.plan(request.clone()).await;
+        }
     }
     let tickets = Arc::new(AtomicUsize::new(0));
     let start = Instant::now();
     let mut tasks = Vec::new();
-    for _ in 0..config.concurrency.max(1) {
-        let (mut client, request, config) = (client.clone(), request.clone(), config.clone());
+    let callers = if connections.is_empty() {
+        0
+    } else {
+        config.concurrency.max(1)
+    };
+    for (_, connection) in (0..callers).zip(connections.iter().cycle()) {
+        let (mut client, request, config) = (connection.clone(), request.clone(), config.clone());
         let (tickets, progress) = (Arc::clone(&tickets), progress.clone());
         tasks.push(tokio::spawn(async move {
             let mut tally = Tally::default();

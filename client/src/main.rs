@@ -6,7 +6,7 @@ use anyhow::{Context, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use mvgrasp_client::{
-    Credentials, PlannerClient,
+    Credentials, PlannerClient, ReplicaStats,
     bench::{self, BenchConfig},
     pb,
     scene::SceneFiles,
@@ -207,6 +207,11 @@ enum Command {
         /// Concurrent callers.
         #[arg(long, default_value_t = 1)]
         concurrency: usize,
+        /// Connections the callers take turns over (one per caller: each
+        /// its own, as a fleet's robots; 1: all share one, as one process's
+        /// stubs do).
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
+        connections: u16,
         /// Seconds to run (default 10 unless --count is given).
         #[arg(long)]
         duration_s: Option<f64>,
@@ -444,6 +449,7 @@ async fn main() -> anyhow::Result<()> {
         Command::Bench {
             scene,
             concurrency,
+            connections,
             duration_s,
             count,
             rate,
@@ -474,7 +480,15 @@ async fn main() -> anyhow::Result<()> {
                 rate,
                 warmup,
             };
-            let report = bench::run(&client, &request, &config, Some(bar.clone())).await?;
+            let mut pool = vec![client];
+            for _ in 1..connections {
+                let mut more = PlannerClient::connect_with(&cli.server, &credentials).await?;
+                if let Some(ms) = cli.timeout_ms {
+                    more = more.with_timeout(Duration::from_millis(ms));
+                }
+                pool.push(more);
+            }
+            let report = bench::run(&pool, &request, &config, Some(bar.clone())).await?;
             bar.finish_and_clear();
             if json {
                 println!(
@@ -511,7 +525,18 @@ async fn main() -> anyhow::Result<()> {
                     report.errors_by_code, report.error_p50_ms, report.error_p99_ms
                 );
             }
-            let replicas = client.replicas();
+            // Each connection keeps its own tally of the replicas: summed.
+            let mut replicas: Vec<ReplicaStats> = Vec::new();
+            for o in pool.iter().flat_map(PlannerClient::replicas) {
+                match replicas.iter_mut().find(|r| r.endpoint == o.endpoint) {
+                    Some(r) => {
+                        r.answered += o.answered;
+                        r.unavailable += o.unavailable;
+                        r.down |= o.down;
+                    }
+                    None => replicas.push(o),
+                }
+            }
             if replicas.len() > 1 {
                 for r in replicas {
                     eprintln!(
@@ -522,7 +547,8 @@ async fn main() -> anyhow::Result<()> {
                         if r.down { " (sitting out)" } else { "" }
                     );
                 }
-                eprintln!("{} calls retried on another replica", client.retries());
+                let retries: u64 = pool.iter().map(PlannerClient::retries).sum();
+                eprintln!("{retries} calls retried on another replica");
             }
         }
         Command::Info => {

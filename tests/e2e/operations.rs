@@ -393,3 +393,39 @@ async fn the_grpc_port_takes_a_frame_in_large_http2_frames() {
         "INITIAL_WINDOW_SIZE: {announced:?}"
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bench_callers_take_turns_over_their_connections() {
+    let (server, first) = start(settings(BackendKind::Baseline)).await;
+    let second = connect(&server).await;
+    let connections = [first, second];
+    let config = mvgrasp_client::bench::BenchConfig {
+        concurrency: 4,
+        duration: None,
+        count: Some(12),
+        rate: None,
+        warmup: 1,
+    };
+    let report = mvgrasp_client::bench::run(&connections, &frame(), &config, None)
+        .await
+        .unwrap();
+    assert_eq!((report.ok, report.errors), (12, 0), "{:?}", report.first_error);
+    // Every connection carried its warm-up call and at least one call of
+    // each of its two callers (a caller takes its first ticket at once).
+    let answered: Vec<u64> = connections
+        .iter()
+        .map(|c| c.replicas().iter().map(|r| r.answered).sum())
+        .collect();
+    assert!(
+        answered.iter().all(|&n| n >= 3),
+        "calls per connection {answered:?}"
+    );
+    assert_eq!(answered.iter().sum::<u64>(), 12 + 2);
+
+    // With no connection nothing is called.
+    let none = mvgrasp_client::bench::run(&[], &frame(), &config, None)
+        .await
+        .unwrap();
+    assert_eq!((none.ok, none.errors), (0, 0));
+    server.shutdown().await.unwrap();
+}
