@@ -26,10 +26,20 @@ mod tests {
 
     use super::v1;
 
-    /// Whether `part` lies inside `whole`'s memory.
-    fn inside(part: &[u8], whole: &[u8]) -> bool {
-        let range = whole.as_ptr_range();
-        range.contains(&part.as_ptr()) && part.as_ptr_range().end <= range.end
+    /// `message` encoded, then decoded from the received bytes: whether the
+    /// decoded `field` equals the sent one and lies inside the received
+    /// bytes (a view of them, not a copy), and whether a clone shares it.
+    fn shared<M: Message + Default + Clone>(message: &M, field: fn(&M) -> &Bytes) -> (bool, bool, bool) {
+        let received = Bytes::from(message.encode_to_vec());
+        let decoded = M::decode(received.clone()).unwrap();
+        let (bytes, whole) = (field(&decoded), received.as_ptr_range());
+        let inside = whole.contains(&bytes.as_ptr()) && bytes.as_ptr_range().end <= whole.end;
+        let cloned = decoded.clone();
+        (
+            bytes == field(message),
+            inside,
+            field(&cloned).as_ptr() == bytes.as_ptr(),
+        )
     }
 
     #[test]
@@ -40,27 +50,11 @@ mod tests {
             data: Bytes::from(vec![7u8; 16]),
             ..Default::default()
         };
-        let received = Bytes::from(depth.encode_to_vec());
-        let decoded = v1::DepthImage::decode(received.clone()).unwrap();
-        assert_eq!(decoded.data, depth.data);
-        assert!(
-            inside(&decoded.data, &received),
-            "the frame was copied out of the message"
-        );
-        // A clone shares the bytes too.
-        let cloned = decoded.clone();
-        assert_eq!(cloned.data.as_ptr(), decoded.data.as_ptr());
-
+        assert_eq!(shared(&depth, |m| &m.data), (true, true, true));
         let cloud = v1::PointCloud {
             xyz: Bytes::from(vec![1u8; 24]),
             ..Default::default()
         };
-        let received = Bytes::from(cloud.encode_to_vec());
-        let decoded = v1::PointCloud::decode(received.clone()).unwrap();
-        assert_eq!(decoded.xyz, cloud.xyz);
-        assert!(
-            inside(&decoded.xyz, &received),
-            "the cloud was copied out of the message"
-        );
+        assert_eq!(shared(&cloud, |m| &m.xyz), (true, true, true));
     }
 }
