@@ -25,7 +25,8 @@ pub struct BenchConfig {
     pub count: Option<usize>,
     /// Total calls per second across callers (unpaced when unset).
     pub rate: Option<f64>,
-    /// Calls before measuring starts (not counted).
+    /// Calls before measuring starts (not counted), shared out over the
+    /// connections (each gets its share rounded up: at least one).
     pub warmup: usize,
 }
 
@@ -105,7 +106,7 @@ pub async fn run(
 ) -> Result<BenchReport> {
     for connection in connections {
         let mut warm = connection.clone();
-        for _ in 0..config.warmup {
+        for _ in 0..config.warmup.div_ceil(connections.len()) {
             // Unmeasured: a warm-up call that fails (a deadline shorter than a
             // plan, say) fails again, counted, in the measured part.
             let _ = warm.plan(request.clone()).await;

@@ -221,7 +221,8 @@ enum Command {
         /// Total calls per second (default: as fast as answers come).
         #[arg(long)]
         rate: Option<f64>,
-        /// Unmeasured calls first.
+        /// Unmeasured calls first (shared out over the connections, at
+        /// least one on each).
         #[arg(long, default_value_t = 5)]
         warmup: usize,
         /// Print the report as JSON.
