@@ -115,12 +115,8 @@ pub async fn run(
     let tickets = Arc::new(AtomicUsize::new(0));
     let start = Instant::now();
     let mut tasks = Vec::new();
-    let callers = if connections.is_empty() {
-        0
-    } else {
-        config.concurrency.max(1)
-    };
-    for (_, connection) in (0..callers).zip(connections.iter().cycle()) {
+    // Cycling over no connection gives no caller.
+    for connection in connections.iter().cycle().take(config.concurrency.max(1)) {
         let (mut client, request, config) = (connection.clone(), request.clone(), config.clone());
         let (tickets, progress) = (Arc::clone(&tickets), progress.clone());
         tasks.push(tokio::spawn(async move {
