@@ -304,21 +304,41 @@ impl Worker {
             .observe(started.elapsed().as_secs_f64());
         self.release(total);
         let per_view = 4 * size_px * size_px;
-        let mut offset = 0;
-        for job in live {
+        // Each request's maps are cut off the end of the batch's, the last
+        // request's first, and the first request keeps what is left: one
+        // copy fewer (a lone call's maps are not copied here at all).
+        let (mut data, failed) = match result {
+            Ok(maps) => (maps.data, None),
+            Err(e) => (Vec::new(), Some(format!("inference: {e}"))),
+        };
+        let mut answers = Vec::with_capacity(live.len());
+        for job in live.into_iter().rev() {
             let n = job.batch.len;
-            let answer = match &result {
-                Ok(maps) => Ok((
-                    GraspMaps {
-                        size_px,
-                        len: n,
-                        data: maps.data[offset * per_view..(offset + n) * per_view].to_vec(),
-                    },
-                    job.enqueued.elapsed(),
-                )),
-                Err(e) => Err(Error::Internal(format!("inference: {e}"))),
+            let answer = match (&failed, data.len().checked_sub(n * per_view)) {
+                (None, Some(rest)) => {
+                    let own = if rest == 0 {
+                        std::mem::take(&mut data)
+                    } else {
+                        data.split_off(rest)
+                    };
+                    Ok((
+                        GraspMaps {
+                            size_px,
+                            len: n,
+                            data: own,
+                        },
+                        job.enqueued.elapsed(),
+                    ))
+                }
+                (Some(failed), _) => Err(Error::Internal(failed.clone())),
+                (None, None) => Err(Error::Internal(format!(
+                    "inference: {} map values left for a request of {n} views",
+                    data.len()
+                ))),
             };
-            offset += n;
+            answers.push((job, answer));
+        }
+        for (job, answer) in answers.into_iter().rev() {
             // A caller that left meanwhile simply does not read its answer.
             let _ = job.reply.send(answer);
         }
@@ -369,6 +389,22 @@ mod tests {
         b
     }
 
+    /// A batcher of one session, batches of up to 8 views.
+    fn one_session(net: impl GraspNet + Send + 'static, max_wait: Duration) -> Batcher {
+        let limits = BatchLimits {
+            max_batch_views: 8,
+            max_wait,
+            max_queued_views: 64,
+        };
+        Batcher::spawn(
+            vec![Box::new(net)],
+            None,
+            limits,
+            Arc::new(Metrics::new().unwrap()),
+        )
+        .unwrap()
+    }
+
     /// Six concurrent requests of two views each; each gets the maps the
     /// network gives its views alone.
     async fn six_requests_get_their_own_maps(batcher: &Batcher) {
@@ -393,18 +429,7 @@ mod tests {
             inner: MomentsNet::default(),
             calls: Arc::clone(&calls),
         };
-        let limits = BatchLimits {
-            max_batch_views: 8,
-            max_wait: Duration::from_millis(50),
-            max_queued_views: 64,
-        };
-        let batcher = Batcher::spawn(
-            vec![Box::new(net)],
-            None,
-            limits,
-            Arc::new(Metrics::new().unwrap()),
-        )
-        .unwrap();
+        let batcher = one_session(net, Duration::from_millis(50));
         six_requests_get_their_own_maps(&batcher).await;
         let calls = calls.lock().unwrap().clone();
         assert_eq!(calls.iter().sum::<usize>(), 12);
@@ -414,6 +439,23 @@ mod tests {
             "6 concurrent requests took {} calls: {calls:?}",
             calls.len()
         );
+    }
+
+    /// The answers to two requests queued together: the worker holds the
+    /// first for company while a call prepares, until both wait.
+    async fn in_one_batch(batcher: &Batcher, batches: [ViewBatch; 2]) -> [Result<(GraspMaps, Duration)>; 2] {
+        let preparing = batcher.preparing();
+        let views: usize = batches.iter().map(|b| b.len).sum();
+        let calls = batches.map(|batch| {
+            let b = batcher.clone();
+            tokio::spawn(async move { b.infer(batch, None).await })
+        });
+        while batcher.queued_views.load(Ordering::SeqCst) < views {
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+        drop(preparing);
+        let [first, second] = calls;
+        [first.await.unwrap(), second.await.unwrap()]
     }
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -457,17 +499,9 @@ mod tests {
         assert_eq!((timed("lone"), timed("shared")), (1, 1));
         // Requests sharing a call are never alone.
         metrics.in_flight.set(1);
-        let preparing = batcher.preparing();
-        let (a, b) = (batcher.clone(), batcher.clone());
-        let first = tokio::spawn(async move { a.infer(views(1, 0.0), None).await });
-        let second = tokio::spawn(async move { b.infer(views(1, 0.1), None).await });
-        // The worker holds the first for company while a call prepares.
-        while batcher.queued_views.load(Ordering::SeqCst) < 2 {
-            tokio::time::sleep(Duration::from_millis(1)).await;
-        }
-        drop(preparing);
-        first.await.unwrap().unwrap();
-        second.await.unwrap().unwrap();
+        let [first, second] = in_one_batch(&batcher, [views(1, 0.0), views(1, 0.1)]).await;
+        first.unwrap();
+        second.unwrap();
         assert_eq!(*busy_calls.lock().unwrap(), [2, 2], "one shared call of both");
         assert_eq!(*lone_calls.lock().unwrap(), [3]);
         assert_eq!(metrics.lone_network_calls.get(), 1);
@@ -559,5 +593,49 @@ mod tests {
         assert_eq!(maps.len, 6);
         assert_eq!(metrics.queued_views.get(), 0);
         assert_eq!(metrics.dropped.with_label_values(&["deadline"]).get(), 1);
+    }
+
+    /// Fails every call, or answers with one view's maps too few.
+    struct Broken {
+        inner: MomentsNet,
+        short: bool,
+    }
+
+    impl GraspNet for Broken {
+        fn contract(&self) -> &ModelContract {
+            self.inner.contract()
+        }
+        fn infer(&mut self, batch: &ViewBatch) -> mvgrasp_core::Result<GraspMaps> {
+            if !self.short {
+                return Err(mvgrasp_core::Error::Backend("the device is gone".into()));
+            }
+            let mut maps = self.inner.infer(batch)?;
+            maps.data
+                .truncate(maps.data.len() - 4 * batch.size_px * batch.size_px);
+            Ok(maps)
+        }
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn every_request_of_a_failed_batch_hears_why() {
+        for short in [false, true] {
+            let net = Broken {
+                inner: MomentsNet::default(),
+                short,
+            };
+            let batcher = one_session(net, Duration::from_millis(200));
+            for answer in in_one_batch(&batcher, [views(3, 0.0), views(2, 0.1)]).await {
+                let err = answer.unwrap_err();
+                let expected = if short {
+                    "values; the batch needs"
+                } else {
+                    "the device is gone"
+                };
+                assert!(
+                    matches!(&err, Error::Internal(m) if m.contains(expected)),
+                    "short {short}: {err}"
+                );
+            }
+        }
     }
 }

@@ -1,5 +1,8 @@
 //! Quality peaks: optional Gaussian smoothing, local maxima, non-maximum suppression.
 
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
 /// Qualities below this are treated as 0.
 pub const NEGLIGIBLE_QUALITY: f32 = 1e-6;
 
@@ -152,20 +155,15 @@ fn local_maxima(map: &[f32], w: usize, h: usize, threshold: f32) -> Vec<(usize, 
 }
 
 /// Best first (ties by index), dropping any candidate within `radius_px` of
-/// a better kept one, up to `k`.
-fn suppress(
-    mut candidates: Vec<(usize, f32)>,
-    w: usize,
-    radius_px: usize,
-    k: usize,
-) -> Vec<(usize, usize, f32)> {
-    candidates.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+/// a better kept one, up to `k`. The candidates are heaped, not sorted: a
+/// map searched from `min_quality` 0 has hundreds, and only the first few
+/// are looked at.
+fn suppress(candidates: Vec<(usize, f32)>, w: usize, radius_px: usize, k: usize) -> Vec<(usize, usize, f32)> {
+    let mut heap = BinaryHeap::from(candidates.into_iter().map(Ranked).collect::<Vec<_>>());
     let r2 = (radius_px * radius_px) as isize;
     let mut kept: Vec<(usize, usize, f32)> = Vec::new();
-    for (i, q) in candidates {
-        if kept.len() >= k {
-            break;
-        }
+    while kept.len() < k {
+        let Some(Ranked((i, q))) = heap.pop() else { break };
         let (u, v) = ((i % w) as isize, (i / w) as isize);
         let suppressed = kept.iter().any(|&(ku, kv, _)| {
             let (du, dv) = (ku as isize - u, kv as isize - v);
@@ -177,6 +175,30 @@ fn suppress(
     }
     kept
 }
+
+/// A candidate `(index, value)` ordered best first: the greater value, then
+/// the lower index.
+struct Ranked((usize, f32));
+
+impl Ord for Ranked {
+    fn cmp(&self, other: &Self) -> Ordering {
+        self.0.1.total_cmp(&other.0.1).then(other.0.0.cmp(&self.0.0))
+    }
+}
+
+impl PartialOrd for Ranked {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl PartialEq for Ranked {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == Ordering::Equal
+    }
+}
+
+impl Eq for Ranked {}
 
 /// `dst[u]` = the maximum of `src[u - 1..=u + 1]`, clamped at the ends.
 fn row_max3(src: &[f32], dst: &mut [f32]) {
@@ -248,6 +270,52 @@ mod tests {
                     "{context}"
                 );
             }
+        }
+    }
+
+    /// Suppression read literally: every candidate sorted best first (ties
+    /// by index), each kept unless within the radius of one kept before.
+    fn suppress_reference(
+        mut candidates: Vec<(usize, f32)>,
+        w: usize,
+        radius_px: usize,
+        k: usize,
+    ) -> Vec<(usize, usize, f32)> {
+        candidates.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+        let mut kept: Vec<(usize, usize, f32)> = Vec::new();
+        for (i, q) in candidates {
+            let (u, v) = (i % w, i / w);
+            let near = |&(ku, kv, _): &(usize, usize, f32)| {
+                ku.abs_diff(u).pow(2) + kv.abs_diff(v).pow(2) <= radius_px.pow(2)
+            };
+            if kept.len() < k && !kept.iter().any(near) {
+                kept.push((u, v, q));
+            }
+        }
+        kept
+    }
+
+    /// The heap keeps what sorting keeps: many tied values, candidates in
+    /// any order, every radius and count.
+    #[test]
+    fn heaped_suppression_keeps_what_sorting_keeps() {
+        let mut rng = crate::rng::SplitMix64::new(5);
+        for trial in 0..500 {
+            let w = 1 + rng.below(30);
+            let n = rng.below(200);
+            let mut indices: Vec<usize> = (0..w * w).collect();
+            let candidates: Vec<(usize, f32)> = (0..n.min(w * w))
+                .map(|_| {
+                    let at = indices.swap_remove(rng.below(indices.len()));
+                    (at, rng.below(8) as f32 / 7.0)
+                })
+                .collect();
+            let (radius, k) = (rng.below(6), rng.below(12));
+            assert_eq!(
+                suppress(candidates.clone(), w, radius, k),
+                suppress_reference(candidates, w, radius, k),
+                "trial {trial}: {w} px wide, radius {radius}, k {k}"
+            );
         }
     }
 
