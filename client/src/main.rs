@@ -418,6 +418,19 @@ fn print_table(r: &pb::PlanGraspsResponse) {
     }
 }
 
+/// A connection to `server`, each call with the deadline of `--timeout-ms` if given.
+async fn connect(
+    server: &str,
+    timeout_ms: Option<u64>,
+    credentials: &Credentials,
+) -> anyhow::Result<PlannerClient> {
+    let client = PlannerClient::connect_with(server, credentials).await?;
+    Ok(match timeout_ms {
+        Some(ms) => client.with_timeout(Duration::from_millis(ms)),
+        None => client,
+    })
+}
+
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
@@ -427,10 +440,7 @@ async fn main() -> anyhow::Result<()> {
         cli.tls_domain.clone(),
         cli.token_file.as_deref(),
     )?;
-    let mut client = PlannerClient::connect_with(&cli.server, &credentials).await?;
-    if let Some(ms) = cli.timeout_ms {
-        client = client.with_timeout(Duration::from_millis(ms));
-    }
+    let mut client = connect(&cli.server, cli.timeout_ms, &credentials).await?;
     match cli.command {
         Command::Plan { scene, json, viz } => {
             let files = scene.load()?;
@@ -483,11 +493,7 @@ async fn main() -> anyhow::Result<()> {
             };
             let mut pool = vec![client];
             for _ in 1..connections {
-                let mut more = PlannerClient::connect_with(&cli.server, &credentials).await?;
-                if let Some(ms) = cli.timeout_ms {
-                    more = more.with_timeout(Duration::from_millis(ms));
-                }
-                pool.push(more);
+                pool.push(connect(&cli.server, cli.timeout_ms, &credentials).await?);
             }
             let report = bench::run(&pool, &request, &config, Some(bar.clone())).await?;
             bar.finish_and_clear();
